@@ -1,0 +1,144 @@
+//! The `kdray` command line.
+use crate::gpu::{self, tracer::GpuTracer, Gpu};
+use crate::image_out::{compare, write_png};
+use crate::{scene, CpuTracer, Tracer};
+use anyhow::{bail, Result};
+use clap::{Parser, Subcommand, ValueEnum};
+use indicatif::{ProgressBar, ProgressStyle};
+use std::path::PathBuf;
+use std::time::Instant;
+
+#[derive(Parser)]
+#[command(name = "kdray", version, about = "kd-tree ray casting on CPU and Vulkan GPUs")]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
+pub enum DeviceArg {
+    Gpu,
+    Cpu,
+}
+
+#[derive(Subcommand)]
+pub enum Command {
+    /// Render a scene to PNG: primary rays, one shadow ray per pixel, Lambert shading.
+    Render {
+        /// `cornell` (built in), a .obj file or a .toml scene file.
+        #[arg(long, default_value = "cornell")]
+        scene: String,
+        /// Where to trace; default: the GPU, or the CPU with a warning if there is no GPU.
+        #[arg(long, value_enum)]
+        device: Option<DeviceArg>,
+        /// Image width and height in pixels.
+        #[arg(long, default_value_t = 512)]
+        size: u32,
+        /// Radiance mapped to white.
+        #[arg(long, default_value_t = 1.0)]
+        exposure: f32,
+        /// Random stream of the light samples.
+        #[arg(long, default_value_t = 1)]
+        seed: u32,
+        #[arg(long, short, default_value = "render.png")]
+        out: PathBuf,
+        /// Also render on the other device, write `<out>-cpu.png`, and report how the two differ.
+        #[arg(long)]
+        compare: bool,
+    },
+    /// List the GPU adapters wgpu sees.
+    Adapters,
+}
+
+fn progress(label: &str) -> ProgressBar {
+    let pb = ProgressBar::new(0);
+    pb.set_style(
+        ProgressStyle::with_template("{prefix:>8} [{bar:40}] {percent:>3}% {elapsed_precise}")
+            .expect("valid template")
+            .progress_chars("=> "),
+    );
+    pb.set_prefix(label.to_string());
+    pb
+}
+
+pub fn run(cli: Cli) -> Result<()> {
+    match cli.command {
+        Command::Adapters => {
+            let list = gpu::adapters();
+            if list.is_empty() {
+                bail!("no GPU adapter: wgpu found no Vulkan device");
+            }
+            for a in list {
+                println!("{}", gpu::describe(&a.get_info()));
+            }
+            Ok(())
+        }
+        Command::Render { scene, device, size, exposure, seed, out, compare: cmp } => {
+            if size == 0 || size > 16384 {
+                bail!("--size must be between 1 and 16384, got {size}");
+            }
+            if !(exposure.is_finite() && exposure > 0.0) {
+                bail!("--exposure must be a positive number");
+            }
+            let scene = scene::load(&scene)?;
+            println!(
+                "scene {}: {} triangles ({} degenerate dropped), {} materials, {} lights",
+                scene.name,
+                scene.triangles.len(),
+                scene.dropped_degenerate,
+                scene.materials.len(),
+                scene.lights().len()
+            );
+            let cam = scene.camera.to_pod(size, size);
+            let gpu = match device {
+                Some(DeviceArg::Cpu) => None,
+                Some(DeviceArg::Gpu) => Some(Gpu::new()?),
+                None => match Gpu::new() {
+                    Ok(g) => Some(g),
+                    Err(e) => {
+                        eprintln!("warning: {e:#}; rendering on the CPU");
+                        None
+                    }
+                },
+            };
+            let cpu = CpuTracer::new(&scene);
+            let gpu_tracer = match &gpu {
+                Some(g) => Some(GpuTracer::new(g, &scene)?),
+                None => None,
+            };
+            let primary: &dyn Tracer = match &gpu_tracer {
+                Some(t) => t,
+                None => &cpu,
+            };
+            let render = |t: &dyn Tracer| -> Result<crate::RenderOutput> {
+                println!("device: {}", t.device_name());
+                let pb = progress("render");
+                let start = Instant::now();
+                let r = t.render(&cam, seed, &pb)?;
+                pb.finish_and_clear();
+                let secs = start.elapsed().as_secs_f64();
+                println!(
+                    "rendered {size}x{size} in {:.3} s ({:.2} M rays/s, primary + shadow)",
+                    secs,
+                    2.0 * (size * size) as f64 / secs / 1e6
+                );
+                Ok(r)
+            };
+            let img = render(primary)?;
+            write_png(&img, exposure, &out)?;
+            println!("wrote {}", out.display());
+            if cmp {
+                if gpu_tracer.is_none() {
+                    bail!("--compare needs a GPU adapter");
+                }
+                let other = render(&cpu)?;
+                let stem = out.with_extension("");
+                let cpu_path = PathBuf::from(format!("{}-cpu.png", stem.display()));
+                write_png(&other, exposure, &cpu_path)?;
+                println!("wrote {}", cpu_path.display());
+                println!("GPU vs CPU: {}", compare(&img, &other, exposure));
+            }
+            Ok(())
+        }
+    }
+}

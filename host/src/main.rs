@@ -1,0 +1,15 @@
+use clap::Parser;
+
+fn main() {
+    // Mesa's Vulkan drivers probe Wayland while enumerating adapters, and libwayland prints an
+    // "error:" line when XDG_RUNTIME_DIR is unset (headless machines, CI). Give it a harmless
+    // value before any thread exists.
+    if std::env::var_os("XDG_RUNTIME_DIR").is_none() {
+        std::env::set_var("XDG_RUNTIME_DIR", std::env::temp_dir());
+    }
+    let cli = kdray::cli::Cli::parse();
+    if let Err(e) = kdray::cli::run(cli) {
+        eprintln!("error: {e:#}");
+        std::process::exit(1);
+    }
+}

@@ -1,0 +1,63 @@
+//! The Cornell box from the Cornell Program of Computer Graphics' published measurements
+//! ("Cornell Box Data": millimetres, camera at (278, 273, −800) looking +z, 35 mm focal length
+//! on a 25 mm × 25 mm film). Reflectances are RGB approximations of the measured spectra as
+//! commonly used (Mitsuba's scene); the light's radiance likewise. The light quad is lowered by
+//! 0.1 mm below the ceiling so the emitter and the ceiling are not coplanar.
+use super::{CameraSpec, Scene};
+use glam::Vec3;
+use kdray_shared::Material;
+
+fn quad(s: &mut Scene, pts: [[f32; 3]; 4], m: u32) {
+    s.add_quad(pts.map(Vec3::from), m).expect("built-in Cornell box geometry is valid");
+}
+
+pub fn cornell_box() -> Scene {
+    let fov = 2.0 * (12.5f32 / 35.0).atan().to_degrees();
+    let mut s = Scene::new(
+        "cornell",
+        CameraSpec {
+            eye: Vec3::new(278.0, 273.0, -800.0),
+            look_at: Vec3::new(278.0, 273.0, 0.0),
+            up: Vec3::Y,
+            fov_y_deg: fov,
+        },
+    );
+    let diffuse = |c: [f32; 3]| Material { diffuse: c, ..Default::default() };
+    let white = s.add_material("white", diffuse([0.725, 0.71, 0.68]));
+    let red = s.add_material("red", diffuse([0.63, 0.065, 0.05]));
+    let green = s.add_material("green", diffuse([0.14, 0.45, 0.091]));
+    let light = s.add_material(
+        "light",
+        Material { diffuse: [0.78, 0.78, 0.78], emission: [17.0, 12.0, 4.0], ..Default::default() },
+    );
+    // Light (y lowered 0.1 mm from 548.8).
+    quad(&mut s, [[343.0, 548.7, 227.0], [343.0, 548.7, 332.0], [213.0, 548.7, 332.0], [213.0, 548.7, 227.0]], light);
+    // Floor, ceiling, back wall.
+    quad(&mut s, [[552.8, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 559.2], [549.6, 0.0, 559.2]], white);
+    quad(&mut s, [[556.0, 548.8, 0.0], [556.0, 548.8, 559.2], [0.0, 548.8, 559.2], [0.0, 548.8, 0.0]], white);
+    quad(&mut s, [[549.6, 0.0, 559.2], [0.0, 0.0, 559.2], [0.0, 548.8, 559.2], [556.0, 548.8, 559.2]], white);
+    // Right wall (green, x = 0) and left wall (red, x ≈ 550).
+    quad(&mut s, [[0.0, 0.0, 559.2], [0.0, 0.0, 0.0], [0.0, 548.8, 0.0], [0.0, 548.8, 559.2]], green);
+    quad(&mut s, [[552.8, 0.0, 0.0], [549.6, 0.0, 559.2], [556.0, 548.8, 559.2], [556.0, 548.8, 0.0]], red);
+    // Short block.
+    for q in [
+        [[130.0, 165.0, 65.0], [82.0, 165.0, 225.0], [240.0, 165.0, 272.0], [290.0, 165.0, 114.0]],
+        [[290.0, 0.0, 114.0], [290.0, 165.0, 114.0], [240.0, 165.0, 272.0], [240.0, 0.0, 272.0]],
+        [[130.0, 0.0, 65.0], [130.0, 165.0, 65.0], [290.0, 165.0, 114.0], [290.0, 0.0, 114.0]],
+        [[82.0, 0.0, 225.0], [82.0, 165.0, 225.0], [130.0, 165.0, 65.0], [130.0, 0.0, 65.0]],
+        [[240.0, 0.0, 272.0], [240.0, 165.0, 272.0], [82.0, 165.0, 225.0], [82.0, 0.0, 225.0]],
+    ] {
+        quad(&mut s, q, white);
+    }
+    // Tall block.
+    for q in [
+        [[423.0, 330.0, 247.0], [265.0, 330.0, 296.0], [314.0, 330.0, 456.0], [472.0, 330.0, 406.0]],
+        [[423.0, 0.0, 247.0], [423.0, 330.0, 247.0], [472.0, 330.0, 406.0], [472.0, 0.0, 406.0]],
+        [[472.0, 0.0, 406.0], [472.0, 330.0, 406.0], [314.0, 330.0, 456.0], [314.0, 0.0, 456.0]],
+        [[314.0, 0.0, 456.0], [314.0, 330.0, 456.0], [265.0, 330.0, 296.0], [265.0, 0.0, 296.0]],
+        [[265.0, 0.0, 296.0], [265.0, 330.0, 296.0], [423.0, 330.0, 247.0], [423.0, 0.0, 247.0]],
+    ] {
+        quad(&mut s, q, white);
+    }
+    s
+}

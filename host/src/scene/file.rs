@@ -1,0 +1,199 @@
+//! Scene files (TOML): meshes, camera, materials and lights.
+//!
+//! ```toml
+//! [camera]                       # optional: default frames the scene
+//! eye = [0.0, 0.1, 0.4]
+//! look_at = [0.0, 0.1, 0.0]
+//! up = [0.0, 1.0, 0.0]           # optional
+//! fov_y = 40.0                   # degrees, optional
+//!
+//! [materials.white]              # defines or overrides a material by name
+//! diffuse = [0.8, 0.8, 0.8]
+//! emission = [0.0, 0.0, 0.0]     # optional
+//! mirror = false                 # optional
+//! glass = false                  # optional
+//!
+//! [[mesh]]
+//! file = "bunny.obj"             # relative to this file; or builtin = "cornell"
+//! material = "white"             # optional: every face gets this material
+//! scale = 1.0                    # optional
+//! translate = [0.0, 0.0, 0.0]    # optional
+//!
+//! [[light]]
+//! point = [0.0, 1.0, 1.0]
+//! intensity = [10.0, 10.0, 10.0]
+//!
+//! [[light]]                      # an emissive quad corner, corner+edge1(+edge2)
+//! corner = [-0.1, 0.3, -0.1]
+//! edge1 = [0.2, 0.0, 0.0]
+//! edge2 = [0.0, 0.0, 0.2]
+//! emission = [10.0, 10.0, 10.0]
+//! ```
+use super::{cornell, obj, CameraSpec, PointLight, Scene};
+use anyhow::{anyhow, bail, Context, Result};
+use glam::Vec3;
+use kdray_shared::{Material, MAT_GLASS, MAT_MIRROR};
+use serde::Deserialize;
+use std::collections::BTreeMap;
+use std::path::Path;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileCamera {
+    eye: [f32; 3],
+    look_at: [f32; 3],
+    up: Option<[f32; 3]>,
+    fov_y: Option<f32>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileMaterial {
+    diffuse: [f32; 3],
+    emission: Option<[f32; 3]>,
+    mirror: Option<bool>,
+    glass: Option<bool>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileMesh {
+    file: Option<String>,
+    builtin: Option<String>,
+    material: Option<String>,
+    scale: Option<f32>,
+    translate: Option<[f32; 3]>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileLight {
+    point: Option<[f32; 3]>,
+    intensity: Option<[f32; 3]>,
+    corner: Option<[f32; 3]>,
+    edge1: Option<[f32; 3]>,
+    edge2: Option<[f32; 3]>,
+    emission: Option<[f32; 3]>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SceneFile {
+    camera: Option<FileCamera>,
+    #[serde(default)]
+    materials: BTreeMap<String, FileMaterial>,
+    #[serde(default)]
+    mesh: Vec<FileMesh>,
+    #[serde(default)]
+    light: Vec<FileLight>,
+}
+
+fn finite(name: &str, what: &str, v: [f32; 3]) -> Result<Vec3> {
+    if v.iter().all(|x| x.is_finite()) {
+        Ok(Vec3::from(v))
+    } else {
+        bail!("{name}: {what} is not finite: {v:?}")
+    }
+}
+
+pub fn load_scene_file(path: &Path) -> Result<Scene> {
+    let name = path.display().to_string();
+    let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {name}"))?;
+    let file: SceneFile = toml::from_str(&text).map_err(|e| {
+        let msg = e.message().to_string();
+        match e.span() {
+            Some(span) => {
+                let line = text[..span.start].matches('\n').count() + 1;
+                anyhow!("{name}:{line}: {msg}")
+            }
+            None => anyhow!("{name}: {msg}"),
+        }
+    })?;
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let mut scene = Scene::new(stem, CameraSpec::framing(Vec3::ZERO, Vec3::ONE));
+    for (mname, m) in &file.materials {
+        let flags = if m.mirror.unwrap_or(false) { MAT_MIRROR } else { 0 }
+            | if m.glass.unwrap_or(false) { MAT_GLASS } else { 0 };
+        let diffuse = finite(&name, &format!("material '{mname}' diffuse"), m.diffuse)?;
+        let emission = finite(&name, &format!("material '{mname}' emission"), m.emission.unwrap_or([0.0; 3]))?;
+        scene.add_material(
+            mname,
+            Material { diffuse: diffuse.to_array(), flags, emission: emission.to_array(), _pad: 0 },
+        );
+    }
+    if file.mesh.is_empty() {
+        bail!("{name}: no [[mesh]] entries: the scene is empty");
+    }
+    for (i, m) in file.mesh.iter().enumerate() {
+        let mat = match &m.material {
+            Some(mn) => Some(
+                scene
+                    .material_id(mn)
+                    .ok_or_else(|| anyhow!("{name}: mesh {}: unknown material '{mn}'", i + 1))?,
+            ),
+            None => None,
+        };
+        let translate = finite(&name, "mesh translate", m.translate.unwrap_or([0.0; 3]))?;
+        let scale = m.scale.unwrap_or(1.0);
+        if !scale.is_finite() || scale == 0.0 {
+            bail!("{name}: mesh {}: scale must be finite and non-zero", i + 1);
+        }
+        match (&m.file, &m.builtin) {
+            (Some(f), None) => obj::add_obj(&mut scene, &dir.join(f), scale, translate, mat)?,
+            (None, Some(b)) if b == "cornell" => {
+                let c = cornell::cornell_box();
+                for t in &c.triangles {
+                    let cm = &c.material_names[t.material as usize];
+                    let id = mat.unwrap_or_else(|| scene.add_material(cm, c.materials[t.material as usize]));
+                    let v = [t.v0, t.v1, t.v2].map(|p| Vec3::from(p) * scale + translate);
+                    scene.add_triangle(v, id, &|| format!("{name}: builtin cornell"))?;
+                }
+                if file.camera.is_none() {
+                    scene.camera = c.camera.clone();
+                }
+            }
+            (None, Some(b)) => bail!("{name}: mesh {}: unknown builtin '{b}' (known: cornell)", i + 1),
+            _ => bail!("{name}: mesh {}: give exactly one of 'file' or 'builtin'", i + 1),
+        }
+    }
+    for (i, l) in file.light.iter().enumerate() {
+        match (l.point, l.corner) {
+            (Some(p), None) => {
+                let position = finite(&name, "light point", p)?;
+                let intensity = finite(&name, "light intensity", l.intensity.unwrap_or([1.0; 3]))?;
+                scene.point_lights.push(PointLight { position, intensity });
+            }
+            (None, Some(c)) => {
+                let c = finite(&name, "light corner", c)?;
+                let (e1, e2) = match (l.edge1, l.edge2) {
+                    (Some(a), Some(b)) => (finite(&name, "light edge1", a)?, finite(&name, "light edge2", b)?),
+                    _ => bail!("{name}: light {}: a quad light needs edge1 and edge2", i + 1),
+                };
+                let emission = l.emission.unwrap_or([1.0; 3]);
+                let id = scene.add_material(
+                    &format!("light{}", i + 1),
+                    Material { diffuse: [0.0; 3], emission, ..Default::default() },
+                );
+                scene.add_quad([c, c + e1, c + e1 + e2, c + e2], id)?;
+            }
+            _ => bail!("{name}: light {}: give exactly one of 'point' or 'corner'", i + 1),
+        }
+    }
+    match file.camera {
+        Some(c) => {
+            scene.camera = CameraSpec {
+                eye: finite(&name, "camera eye", c.eye)?,
+                look_at: finite(&name, "camera look_at", c.look_at)?,
+                up: finite(&name, "camera up", c.up.unwrap_or([0.0, 1.0, 0.0]))?,
+                fov_y_deg: c.fov_y.unwrap_or(40.0),
+            };
+        }
+        None if !file.mesh.iter().any(|m| m.builtin.is_some()) => {
+            let (lo, hi) = scene.bounds();
+            scene.camera = CameraSpec::framing(lo, hi);
+        }
+        None => {}
+    }
+    Ok(scene)
+}

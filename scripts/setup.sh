@@ -1,0 +1,39 @@
+#!/usr/bin/env bash
+# Installs what building and running kdray needs, skipping what is already there:
+# the pinned Rust toolchain (rust-toolchain.toml) with its components, and a Vulkan loader plus
+# Mesa's lavapipe CPU driver when the machine has no Vulkan driver at all.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+toolchain=$(sed -n 's/^channel *= *"\(.*\)"/\1/p' rust-toolchain.toml)
+if ! command -v rustup >/dev/null; then
+  echo "error: rustup not found: install Rust from rustup.rs first" >&2
+  exit 1
+fi
+if ! rustup toolchain list | grep -q "^${toolchain}"; then
+  echo "setup: installing Rust ${toolchain} (rust-src, rustc-dev, llvm-tools)"
+  rustup toolchain install "${toolchain}" --profile minimal --component rust-src,rustc-dev,llvm-tools
+fi
+installed=$(rustup component list --toolchain "${toolchain}" --installed)
+for c in rust-src rustc-dev llvm-tools; do
+  if ! grep -q "^${c}" <<<"${installed}"; then
+    rustup component add --toolchain "${toolchain}" "${c}"
+  fi
+done
+
+have_loader() { ldconfig -p 2>/dev/null | grep -c 'libvulkan\.so\.1' >/dev/null; }
+have_driver() {
+  local f
+  for f in /usr/share/vulkan/icd.d/*.json /etc/vulkan/icd.d/*.json /usr/local/share/vulkan/icd.d/*.json; do
+    [ -e "$f" ] && return 0
+  done
+  return 1
+}
+if ! have_loader || ! have_driver; then
+  echo "setup: no Vulkan driver found: installing the Vulkan loader and Mesa's lavapipe"
+  sudo=""
+  [ "$(id -u)" -eq 0 ] || sudo="sudo"
+  export DEBIAN_FRONTEND=noninteractive
+  $sudo apt-get update -qq
+  $sudo apt-get install -y -qq --no-install-recommends libvulkan1 mesa-vulkan-drivers >/dev/null
+fi

@@ -1,0 +1,46 @@
+//! Brute-force closest-hit and any-hit over a triangle list: the oracle every accelerated
+//! traversal is checked against. Ties in t keep the lower primitive index.
+use crate::pod::{Hit, Triangle};
+use crate::ray::Ray;
+use crate::triangle::{intersect_triangle, ShearedRay};
+
+#[inline(always)]
+pub fn closest_hit(ray: &Ray, tris: &[Triangle]) -> Hit {
+    let mut best = Hit::NONE;
+    let r = match ShearedRay::new(ray) {
+        Some(r) => r,
+        None => return best,
+    };
+    let mut t_max = ray.t_max;
+    let n = tris.len();
+    let mut i = 0;
+    while i < n {
+        let tri = &tris[i];
+        if let Some(h) = intersect_triangle(&r, tri.v0, tri.v1, tri.v2, ray.t_min, t_max) {
+            if !best.is_hit() || h.t < best.t {
+                best = Hit { t: h.t, prim: i as u32, b1: h.b1, b2: h.b2 };
+                t_max = h.t;
+            }
+        }
+        i += 1;
+    }
+    best
+}
+
+#[inline(always)]
+pub fn any_hit(ray: &Ray, tris: &[Triangle]) -> bool {
+    let r = match ShearedRay::new(ray) {
+        Some(r) => r,
+        None => return false,
+    };
+    let n = tris.len();
+    let mut i = 0;
+    while i < n {
+        let tri = &tris[i];
+        if intersect_triangle(&r, tri.v0, tri.v1, tri.v2, ray.t_min, ray.t_max).is_some() {
+            return true;
+        }
+        i += 1;
+    }
+    false
+}

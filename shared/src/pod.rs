@@ -1,0 +1,113 @@
+//! Buffer layouts shared by host and kernels: `#[repr(C)]`, `Pod`, scalars and scalar arrays
+//! only (std430-compatible, no padding surprises). Sizes are asserted in the host tests.
+use bytemuck::{Pod, Zeroable};
+
+/// `Hit::prim` of a ray that hit nothing.
+pub const MISS: u32 = u32::MAX;
+
+/// A triangle as stored for intersection: three vertices, its material id and the index of the
+/// face in the source mesh (after degenerate triangles were dropped).
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct Triangle {
+    pub v0: [f32; 3],
+    pub material: u32,
+    pub v1: [f32; 3],
+    pub face: u32,
+    pub v2: [f32; 3],
+    pub _pad: u32,
+}
+
+/// Closest-hit result: distance, primitive index (`MISS` for none) and barycentrics of v1, v2.
+#[repr(C)]
+#[derive(Copy, Clone, Debug, PartialEq, Pod, Zeroable)]
+pub struct Hit {
+    pub t: f32,
+    pub prim: u32,
+    pub b1: f32,
+    pub b2: f32,
+}
+
+impl Hit {
+    pub const NONE: Hit = Hit { t: f32::INFINITY, prim: MISS, b1: 0.0, b2: 0.0 };
+    #[inline(always)]
+    pub fn is_hit(&self) -> bool {
+        self.prim != MISS
+    }
+}
+
+impl Default for Hit {
+    fn default() -> Self {
+        Self::NONE
+    }
+}
+
+pub const MAT_MIRROR: u32 = 1;
+pub const MAT_GLASS: u32 = 2;
+
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct Material {
+    pub diffuse: [f32; 3],
+    /// `MAT_MIRROR`, `MAT_GLASS` bits.
+    pub flags: u32,
+    pub emission: [f32; 3],
+    pub _pad: u32,
+}
+
+pub const LIGHT_TRIANGLE: u32 = 0;
+pub const LIGHT_POINT: u32 = 1;
+
+/// A light to sample for direct illumination. Triangle lights: `p0`, edges `e1`, `e2`,
+/// emitted radiance (two-sided). Point lights: position `p0`, intensity in `emission`.
+/// `cdf` is the running sum of selection probabilities (last light: 1).
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct Light {
+    pub p0: [f32; 3],
+    pub kind: u32,
+    pub e1: [f32; 3],
+    pub cdf: f32,
+    pub e2: [f32; 3],
+    pub area: f32,
+    pub emission: [f32; 3],
+    pub _pad: u32,
+}
+
+/// Pinhole camera: ray through pixel (x, y) has direction `top_left + (x+½)·du + (y+½)·dv`.
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct Camera {
+    pub origin: [f32; 3],
+    pub width: u32,
+    pub top_left: [f32; 3],
+    pub height: u32,
+    pub du: [f32; 3],
+    pub _pad0: u32,
+    pub dv: [f32; 3],
+    pub _pad1: u32,
+}
+
+/// Per-dispatch parameters (one read-only storage buffer, binding 0 of every kernel).
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct FrameParams {
+    /// Work items in this dispatch.
+    pub count: u32,
+    /// Global index of item 0 (pixel index of the first ray of a batch).
+    pub first: u32,
+    pub seed: u32,
+    pub light_count: u32,
+    pub camera: Camera,
+}
+
+/// What shading needs after the shadow ray: radiance reaching the eye regardless of the shadow
+/// ray (`base`: emission) and the direct light if the shadow ray is unoccluded (`direct`).
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct ShadeTerms {
+    pub base: [f32; 3],
+    pub _pad0: u32,
+    pub direct: [f32; 3],
+    pub _pad1: u32,
+}

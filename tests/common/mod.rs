@@ -1,0 +1,89 @@
+//! Shared by the test suites: the GPU (once per test binary) and closed meshes.
+#![allow(dead_code)]
+use glam::Vec3;
+use kdray::scene::{CameraSpec, Scene};
+use kdray::Gpu;
+use kdray_shared::Material;
+use std::sync::OnceLock;
+
+/// The GPU, or `None` (with a message) when there is no adapter. With `KDRAY_REQUIRE_GPU=1`
+/// (set by the README's test command, and so in CI) a missing adapter fails the test instead.
+pub fn gpu() -> Option<&'static Gpu> {
+    static GPU: OnceLock<Result<Gpu, String>> = OnceLock::new();
+    match GPU.get_or_init(|| Gpu::new().map_err(|e| format!("{e:#}"))) {
+        Ok(g) => Some(g),
+        Err(e) => {
+            if std::env::var("KDRAY_REQUIRE_GPU").is_ok_and(|v| v == "1") {
+                panic!("KDRAY_REQUIRE_GPU=1 but no GPU: {e}");
+            }
+            eprintln!("skipped: GPU part of this test needs a Vulkan adapter ({e})");
+            None
+        }
+    }
+}
+
+/// Icosphere of `subdiv` subdivisions: closed, every edge shared by exactly two triangles with
+/// bit-identical vertex coordinates.
+pub fn icosphere(center: Vec3, radius: f32, subdiv: u32) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
+    let t = (1.0 + 5f64.sqrt()) / 2.0;
+    let mut v: Vec<glam::DVec3> = [
+        (-1.0, t, 0.0), (1.0, t, 0.0), (-1.0, -t, 0.0), (1.0, -t, 0.0),
+        (0.0, -1.0, t), (0.0, 1.0, t), (0.0, -1.0, -t), (0.0, 1.0, -t),
+        (t, 0.0, -1.0), (t, 0.0, 1.0), (-t, 0.0, -1.0), (-t, 0.0, 1.0),
+    ]
+    .iter()
+    .map(|&(x, y, z)| glam::DVec3::new(x, y, z).normalize())
+    .collect();
+    let mut f: Vec<[u32; 3]> = vec![
+        [0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11],
+        [1, 5, 9], [5, 11, 4], [11, 10, 2], [10, 7, 6], [7, 1, 8],
+        [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8], [3, 8, 9],
+        [4, 9, 5], [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1],
+    ];
+    for _ in 0..subdiv {
+        let mut mid = std::collections::HashMap::new();
+        let mut nf = Vec::new();
+        for tri in &f {
+            let mut m = [0u32; 3];
+            for k in 0..3 {
+                let (a, b) = (tri[k], tri[(k + 1) % 3]);
+                let key = (a.min(b), a.max(b));
+                m[k] = *mid.entry(key).or_insert_with(|| {
+                    v.push(((v[a as usize] + v[b as usize]) * 0.5).normalize());
+                    (v.len() - 1) as u32
+                });
+            }
+            nf.push([tri[0], m[0], m[2]]);
+            nf.push([tri[1], m[1], m[0]]);
+            nf.push([tri[2], m[2], m[1]]);
+            nf.push([m[0], m[1], m[2]]);
+        }
+        f = nf;
+    }
+    let c = center.as_dvec3();
+    let verts = v.iter().map(|p| (c + *p * radius as f64).as_vec3().to_array()).collect();
+    (verts, f)
+}
+
+pub fn mesh_scene(name: &str, verts: &[[f32; 3]], faces: &[[u32; 3]]) -> Scene {
+    let mut s = Scene::new(name, CameraSpec::framing(Vec3::ZERO, Vec3::ONE));
+    let m = s.add_material("white", Material { diffuse: [0.8; 3], ..Default::default() });
+    for f in faces {
+        let v = f.map(|i| Vec3::from(verts[i as usize]));
+        s.add_triangle(v, m, &|| name.to_string()).unwrap();
+    }
+    s
+}
+
+/// Uniformly distributed unit vectors (deterministic).
+pub fn random_dirs(n: usize, seed: u32) -> Vec<[f32; 3]> {
+    let mut rng = kdray_shared::rng::Rng::new(seed, 0);
+    (0..n)
+        .map(|_| {
+            let z = 2.0 * rng.next_f32() - 1.0;
+            let phi = std::f32::consts::TAU * rng.next_f32();
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            [r * phi.cos(), r * phi.sin(), z]
+        })
+        .collect()
+}

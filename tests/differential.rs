@@ -1,0 +1,141 @@
+//! The same rays through the native and the GPU runtime (lavapipe in CI): hit triangle ids,
+//! distances, occlusion, RNG streams, camera rays and the rendered image must agree.
+mod common;
+
+use kdray::image_out::compare;
+use kdray::{scene, CpuTracer, GpuTracer, Tracer};
+use kdray_shared::{camera, rng::Rng, shade, Hit, Ray};
+
+/// Fraction of differing ids and the largest |Δt|/t where the ids agree.
+fn diff(a: &[Hit], b: &[Hit]) -> (f64, f32) {
+    let mut differ = 0;
+    let mut max_rel = 0.0f32;
+    for (x, y) in a.iter().zip(b) {
+        if x.prim != y.prim {
+            differ += 1;
+        } else if x.is_hit() {
+            max_rel = max_rel.max((x.t - y.t).abs() / x.t.abs());
+        }
+    }
+    (differ as f64 / a.len() as f64, max_rel)
+}
+
+#[test]
+fn cornell_256_closest_and_any_hit_cpu_vs_gpu() {
+    let Some(g) = common::gpu() else { return };
+    let scene = scene::load("cornell").unwrap();
+    let cam = scene.camera.to_pod(256, 256);
+    let rays: Vec<Ray> = (0..256 * 256).map(|i| camera::primary_ray(&cam, i)).collect();
+    let cpu = CpuTracer::new(&scene);
+    let gpu = GpuTracer::new(g, &scene).unwrap();
+    let (ch, gh) = (cpu.closest_hits(&rays).unwrap(), gpu.closest_hits(&rays).unwrap());
+    let (frac, max_rel) = diff(&ch, &gh);
+    println!("Cornell 256² primary rays on {}: {:.5} % ids differ, max |Δt|/t = {:.2e}", gpu.device_name(), 100.0 * frac, max_rel);
+    assert!(frac <= 1e-5, "{:.5} % of hit ids differ", 100.0 * frac);
+    assert!(max_rel <= 1e-5, "max |Δt|/t = {max_rel:e}");
+    assert!(ch.iter().filter(|h| h.is_hit()).count() > 60000, "the camera sees the box");
+
+    // Shadow rays built on the CPU from the CPU hits, occlusion on both.
+    let lights = scene.lights();
+    let shadow: Vec<Ray> = rays
+        .iter()
+        .zip(&ch)
+        .enumerate()
+        .map(|(i, (r, h))| {
+            shade::light_sample(5, i as u32, r, h, &scene.triangles, &scene.materials, &lights, lights.len() as u32).0
+        })
+        .collect();
+    let (ca, ga) = (cpu.any_hits(&shadow).unwrap(), gpu.any_hits(&shadow).unwrap());
+    let differ = ca.iter().zip(&ga).filter(|(a, b)| a != b).count();
+    let occluded = ca.iter().filter(|o| **o).count();
+    println!("shadow rays: {occluded} occluded, {differ} differ");
+    assert!(differ as f64 <= 1e-5 * ca.len() as f64);
+    assert!(occluded > 1000 && occluded < 50000, "the blocks cast shadows: {occluded}");
+}
+
+#[test]
+fn random_rays_in_and_around_the_cornell_box() {
+    let Some(g) = common::gpu() else { return };
+    let scene = scene::load("cornell").unwrap();
+    let n = 1 << 18;
+    let mut rng = Rng::new(99, 1);
+    let dirs = common::random_dirs(n, 3);
+    let rays: Vec<Ray> = dirs
+        .iter()
+        .map(|d| {
+            let o = [rng.next_f32() * 700.0 - 70.0, rng.next_f32() * 700.0 - 70.0, rng.next_f32() * 900.0 - 300.0];
+            Ray::new(o, *d, 0.0, f32::INFINITY)
+        })
+        .collect();
+    let ch = CpuTracer::new(&scene).closest_hits(&rays).unwrap();
+    let gh = GpuTracer::new(g, &scene).unwrap().closest_hits(&rays).unwrap();
+    let (frac, max_rel) = diff(&ch, &gh);
+    // Rays starting next to a surface have tiny t, whose rounding error is relative to the
+    // coordinates (t comes from a sum of terms of the size of the vertices): measure |Δt|
+    // against t + |origin|.
+    let max_scaled = rays
+        .iter()
+        .zip(ch.iter().zip(&gh))
+        .filter(|(_, (a, b))| a.prim == b.prim && a.is_hit())
+        .map(|(r, (a, b))| (a.t - b.t).abs() / (a.t + r.origin.iter().fold(0.0f32, |m, x| m.max(x.abs()))))
+        .fold(0.0f32, f32::max);
+    println!(
+        "{n} random rays: {:.5} % ids differ, max |Δt|/t = {max_rel:.2e}, max |Δt|/(t + |o|) = {max_scaled:.2e}",
+        100.0 * frac
+    );
+    assert!(frac <= 1e-5, "{:.5} % ids differ", 100.0 * frac);
+    assert!(max_scaled <= 1e-5, "max |Δt|/(t + |o|) = {max_scaled:e}");
+}
+
+#[test]
+fn rng_streams_are_identical() {
+    let Some(g) = common::gpu() else { return };
+    let n = 100_000;
+    let gpu = kdray::gpu::tracer::rng_streams(g, 1234, n).unwrap();
+    for (i, got) in gpu.iter().enumerate() {
+        let mut r = Rng::new(1234, i as u32);
+        let want = [r.next_u32(), r.next_u32(), r.next_u32(), r.next_u32()];
+        assert_eq!(*got, want, "stream {i}");
+    }
+    // And the numbers look uniform: mean of next_f32 over all streams ≈ 0.5.
+    let mean = gpu.iter().flatten().map(|x| (x >> 8) as f64 / 16777216.0).sum::<f64>() / (4 * n) as f64;
+    assert!((mean - 0.5).abs() < 0.005, "mean {mean}");
+}
+
+#[test]
+fn cornell_render_matches_pixel_for_pixel() {
+    let Some(g) = common::gpu() else { return };
+    let scene = scene::load("cornell").unwrap();
+    let cam = scene.camera.to_pod(256, 256);
+    let pb = indicatif::ProgressBar::hidden();
+    let c = CpuTracer::new(&scene).render(&cam, 7, &pb).unwrap();
+    let gt = GpuTracer::new(g, &scene).unwrap();
+    let r = gt.render(&cam, 7, &pb).unwrap();
+    let cmp = compare(&c, &r, 1.0);
+    println!("render GPU vs CPU: {cmp}");
+    assert!(cmp.id_mismatches as f64 <= 1e-5 * cmp.pixels as f64);
+    assert!(cmp.max_rel_dt <= 1e-5);
+    // Same hit and same light sample: colours may differ only by float rounding (≤ 1 step).
+    assert!(cmp.max_colour_diff <= 1, "{cmp}");
+    assert!(cmp.colour_mismatches as f64 <= 1e-3 * cmp.pixels as f64, "{cmp}");
+    // The picture is a lit Cornell box: red on the left, green on the right, a bright light.
+    let px = |x: u32, y: u32| c.radiance[(y * 256 + x) as usize];
+    let left = px(20, 128);
+    let right = px(235, 128);
+    assert!(left[0] > 2.0 * left[1], "left wall is red: {left:?}");
+    assert!(right[1] > 2.0 * right[0], "right wall is green: {right:?}");
+    assert!(px(128, 36)[0] > 5.0, "the light is visible near the top: {:?}", px(128, 36));
+}
+
+#[test]
+fn gpu_camera_rays_match_cpu() {
+    let Some(g) = common::gpu() else { return };
+    // Rendering uses GPU-generated camera rays; their hits equal CPU camera rays' hits.
+    let scene = scene::load("cornell").unwrap();
+    let cam = scene.camera.to_pod(97, 61);
+    let r = GpuTracer::new(g, &scene).unwrap().render(&cam, 1, &indicatif::ProgressBar::hidden()).unwrap();
+    let rays: Vec<Ray> = (0..97 * 61).map(|i| camera::primary_ray(&cam, i)).collect();
+    let ch = CpuTracer::new(&scene).closest_hits(&rays).unwrap();
+    let (frac, max_rel) = diff(&ch, &r.hits);
+    assert!(frac <= 1e-3 && max_rel <= 1e-5, "{frac} {max_rel}");
+}
