@@ -3,7 +3,7 @@
 mod common;
 
 use kdray::image_out::compare;
-use kdray::{scene, CpuTracer, GpuTracer, Tracer};
+use kdray::{scene, Accel, CpuTracer, GpuTracer, Tracer};
 use kdray_shared::{camera, rng::Rng, shade, Hit, Ray};
 
 /// Fraction of differing ids and the largest |Δt|/t where the ids agree.
@@ -26,9 +26,9 @@ fn cornell_256_closest_and_any_hit_cpu_vs_gpu() {
     let scene = scene::load("cornell").unwrap();
     let cam = scene.camera.to_pod(256, 256);
     let rays: Vec<Ray> = (0..256 * 256).map(|i| camera::primary_ray(&cam, i)).collect();
-    let cpu = CpuTracer::new(&scene);
-    let gpu = GpuTracer::new(g, &scene).unwrap();
-    let (ch, gh) = (cpu.closest_hits(&rays).unwrap(), gpu.closest_hits(&rays).unwrap());
+    let cpu = CpuTracer::new(&scene, None);
+    let gpu = GpuTracer::new(g, &scene, None).unwrap();
+    let (ch, gh) = (cpu.closest_hits(Accel::Brute, &rays).unwrap(), gpu.closest_hits(Accel::Brute, &rays).unwrap());
     let (frac, max_rel) = diff(&ch, &gh);
     println!("Cornell 256² primary rays on {}: {:.5} % ids differ, max |Δt|/t = {:.2e}", gpu.device_name(), 100.0 * frac, max_rel);
     assert!(frac <= 1e-5, "{:.5} % of hit ids differ", 100.0 * frac);
@@ -45,7 +45,7 @@ fn cornell_256_closest_and_any_hit_cpu_vs_gpu() {
             shade::light_sample(5, i as u32, r, h, &scene.triangles, &scene.materials, &lights, lights.len() as u32).0
         })
         .collect();
-    let (ca, ga) = (cpu.any_hits(&shadow).unwrap(), gpu.any_hits(&shadow).unwrap());
+    let (ca, ga) = (cpu.any_hits(Accel::Brute, &shadow).unwrap(), gpu.any_hits(Accel::Brute, &shadow).unwrap());
     let differ = ca.iter().zip(&ga).filter(|(a, b)| a != b).count();
     let occluded = ca.iter().filter(|o| **o).count();
     println!("shadow rays: {occluded} occluded, {differ} differ");
@@ -67,8 +67,8 @@ fn random_rays_in_and_around_the_cornell_box() {
             Ray::new(o, *d, 0.0, f32::INFINITY)
         })
         .collect();
-    let ch = CpuTracer::new(&scene).closest_hits(&rays).unwrap();
-    let gh = GpuTracer::new(g, &scene).unwrap().closest_hits(&rays).unwrap();
+    let ch = CpuTracer::new(&scene, None).closest_hits(Accel::Brute, &rays).unwrap();
+    let gh = GpuTracer::new(g, &scene, None).unwrap().closest_hits(Accel::Brute, &rays).unwrap();
     let (frac, max_rel) = diff(&ch, &gh);
     // Rays starting next to a surface have tiny t, whose rounding error is relative to the
     // coordinates (t comes from a sum of terms of the size of the vertices): measure |Δt|
@@ -108,9 +108,9 @@ fn cornell_render_matches_pixel_for_pixel() {
     let scene = scene::load("cornell").unwrap();
     let cam = scene.camera.to_pod(256, 256);
     let pb = indicatif::ProgressBar::hidden();
-    let c = CpuTracer::new(&scene).render(&cam, 7, &pb).unwrap();
-    let gt = GpuTracer::new(g, &scene).unwrap();
-    let r = gt.render(&cam, 7, &pb).unwrap();
+    let c = CpuTracer::new(&scene, None).render(Accel::Brute, &cam, 7, &pb).unwrap();
+    let gt = GpuTracer::new(g, &scene, None).unwrap();
+    let r = gt.render(Accel::Brute, &cam, 7, &pb).unwrap();
     let cmp = compare(&c, &r, 1.0);
     println!("render GPU vs CPU: {cmp}");
     assert!(cmp.id_mismatches as f64 <= 1e-5 * cmp.pixels as f64);
@@ -133,9 +133,9 @@ fn gpu_camera_rays_match_cpu() {
     // Rendering uses GPU-generated camera rays; their hits equal CPU camera rays' hits.
     let scene = scene::load("cornell").unwrap();
     let cam = scene.camera.to_pod(97, 61);
-    let r = GpuTracer::new(g, &scene).unwrap().render(&cam, 1, &indicatif::ProgressBar::hidden()).unwrap();
+    let r = GpuTracer::new(g, &scene, None).unwrap().render(Accel::Brute, &cam, 1, &indicatif::ProgressBar::hidden()).unwrap();
     let rays: Vec<Ray> = (0..97 * 61).map(|i| camera::primary_ray(&cam, i)).collect();
-    let ch = CpuTracer::new(&scene).closest_hits(&rays).unwrap();
+    let ch = CpuTracer::new(&scene, None).closest_hits(Accel::Brute, &rays).unwrap();
     let (frac, max_rel) = diff(&ch, &r.hits);
     assert!(frac <= 1e-3 && max_rel <= 1e-5, "{frac} {max_rel}");
 }

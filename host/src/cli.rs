@@ -1,6 +1,8 @@
 //! The `kdray` command line.
 use crate::gpu::{self, tracer::GpuTracer, Gpu};
 use crate::image_out::{compare, write_png};
+use crate::kdtree::{self, BuildOptions, KdTreeData};
+use crate::trace::Accel;
 use crate::{scene, CpuTracer, Tracer};
 use anyhow::{bail, Result};
 use clap::{Parser, Subcommand, ValueEnum};
@@ -45,6 +47,9 @@ pub enum Command {
         /// Also render on the other device, write `<out>-cpu.png`, and report how the two differ.
         #[arg(long)]
         compare: bool,
+        /// How hits are found: brute (oracle), stack, restart, pushdown, shortstack[:N].
+        #[arg(long, default_value = "shortstack")]
+        traversal: String,
     },
     /// List the GPU adapters wgpu sees.
     Adapters,
@@ -73,7 +78,8 @@ pub fn run(cli: Cli) -> Result<()> {
             }
             Ok(())
         }
-        Command::Render { scene, device, size, exposure, seed, out, compare: cmp } => {
+        Command::Render { scene, device, size, exposure, seed, out, compare: cmp, traversal } => {
+            let accel = Accel::parse(&traversal)?;
             if size == 0 || size > 16384 {
                 bail!("--size must be between 1 and 16384, got {size}");
             }
@@ -89,6 +95,11 @@ pub fn run(cli: Cli) -> Result<()> {
                 scene.materials.len(),
                 scene.lights().len()
             );
+            let tree = match accel {
+                Accel::Brute => None,
+                Accel::Kd(_) => Some(build_tree(&scene)),
+            };
+            let tree = tree.as_ref();
             let cam = scene.camera.to_pod(size, size);
             let gpu = match device {
                 Some(DeviceArg::Cpu) => None,
@@ -101,9 +112,9 @@ pub fn run(cli: Cli) -> Result<()> {
                     }
                 },
             };
-            let cpu = CpuTracer::new(&scene);
+            let cpu = CpuTracer::new(&scene, tree);
             let gpu_tracer = match &gpu {
-                Some(g) => Some(GpuTracer::new(g, &scene)?),
+                Some(g) => Some(GpuTracer::new(g, &scene, tree)?),
                 None => None,
             };
             let primary: &dyn Tracer = match &gpu_tracer {
@@ -111,10 +122,10 @@ pub fn run(cli: Cli) -> Result<()> {
                 None => &cpu,
             };
             let render = |t: &dyn Tracer| -> Result<crate::RenderOutput> {
-                println!("device: {}", t.device_name());
+                println!("device: {}, traversal {}", t.device_name(), accel.name());
                 let pb = progress("render");
                 let start = Instant::now();
-                let r = t.render(&cam, seed, &pb)?;
+                let r = t.render(accel, &cam, seed, &pb)?;
                 pb.finish_and_clear();
                 let secs = start.elapsed().as_secs_f64();
                 println!(
@@ -141,4 +152,23 @@ pub fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
     }
+}
+
+/// Builds the kd-tree with default options and prints what it cost.
+pub fn build_tree(scene: &scene::Scene) -> KdTreeData {
+    let t = kdtree::build(&scene.triangles, &BuildOptions::default());
+    let s = &t.stats;
+    println!(
+        "kd-tree: {} nodes, {} leaves ({} empty), {:.2} triangles per leaf, depth {} (limit {}), SAH cost {:.1}, {:.2} MiB, built in {:.3} s",
+        s.nodes,
+        s.leaves,
+        s.empty_leaves,
+        s.avg_leaf_size,
+        s.max_depth,
+        s.depth_limit,
+        s.sah_cost,
+        s.bytes as f64 / 1048576.0,
+        s.build_seconds
+    );
+    t
 }

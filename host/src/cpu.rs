@@ -1,8 +1,10 @@
 //! The native runtime: the `kdray-shared` functions over all cores with rayon.
+use crate::kdtree::KdTreeData;
 use crate::scene::Scene;
-use crate::trace::{RenderOutput, Tracer};
-use anyhow::Result;
+use crate::trace::{Accel, RenderOutput, Tracer};
+use anyhow::{anyhow, Result};
 use indicatif::ProgressBar;
+use kdray_shared::kdtree::{self, Algorithm, Counters, NoStats, Stats};
 use kdray_shared::{brute, camera, shade, Camera, Hit, Light, Material, Ray, Triangle};
 use rayon::prelude::*;
 
@@ -10,11 +12,53 @@ pub struct CpuTracer {
     tris: Vec<Triangle>,
     materials: Vec<Material>,
     lights: Vec<Light>,
+    tree: Option<KdTreeData>,
 }
 
 impl CpuTracer {
-    pub fn new(scene: &Scene) -> Self {
-        CpuTracer { tris: scene.triangles.clone(), materials: scene.materials.clone(), lights: scene.lights() }
+    /// `tree` is needed only for the kd traversals.
+    pub fn new(scene: &Scene, tree: Option<&KdTreeData>) -> Self {
+        CpuTracer {
+            tris: scene.triangles.clone(),
+            materials: scene.materials.clone(),
+            lights: scene.lights(),
+            tree: tree.cloned(),
+        }
+    }
+
+    fn tree(&self) -> Result<kdtree::KdTree<'_>> {
+        self.tree.as_ref().map(|t| t.view(&self.tris)).ok_or_else(|| anyhow!("no kd-tree was built for this scene"))
+    }
+
+    fn closest<S: Stats>(&self, accel: Accel, ray: &Ray, stats: &mut S) -> Result<Hit> {
+        Ok(match accel {
+            Accel::Brute => brute::closest_hit(ray, &self.tris),
+            Accel::Kd(alg) => kdtree::closest_hit(alg, &self.tree()?, ray, stats),
+        })
+    }
+
+    fn any<S: Stats>(&self, accel: Accel, ray: &Ray, stats: &mut S) -> Result<bool> {
+        Ok(match accel {
+            Accel::Brute => brute::any_hit(ray, &self.tris),
+            Accel::Kd(alg) => kdtree::any_hit(alg, &self.tree()?, ray, stats),
+        })
+    }
+
+    /// Per-ray traversal counters of `alg` (closest hit if `closest`, else any hit).
+    pub fn count(&self, alg: Algorithm, rays: &[Ray], closest: bool) -> Result<Vec<Counters>> {
+        let tree = self.tree()?;
+        Ok(rays
+            .par_iter()
+            .map(|r| {
+                let mut c = Counters::default();
+                if closest {
+                    kdtree::closest_hit(alg, &tree, r, &mut c);
+                } else {
+                    kdtree::any_hit(alg, &tree, r, &mut c);
+                }
+                c
+            })
+            .collect())
     }
 }
 
@@ -26,29 +70,30 @@ impl Tracer for CpuTracer {
         format!("CPU ({} threads)", rayon::current_num_threads())
     }
 
-    fn closest_hits(&self, rays: &[Ray]) -> Result<Vec<Hit>> {
-        Ok(rays.par_iter().map(|r| brute::closest_hit(r, &self.tris)).collect())
+    fn closest_hits(&self, accel: Accel, rays: &[Ray]) -> Result<Vec<Hit>> {
+        rays.par_iter().map(|r| self.closest(accel, r, &mut NoStats)).collect()
     }
 
-    fn any_hits(&self, rays: &[Ray]) -> Result<Vec<bool>> {
-        Ok(rays.par_iter().map(|r| brute::any_hit(r, &self.tris)).collect())
+    fn any_hits(&self, accel: Accel, rays: &[Ray]) -> Result<Vec<bool>> {
+        rays.par_iter().map(|r| self.any(accel, r, &mut NoStats)).collect()
     }
 
-    fn render(&self, cam: &Camera, seed: u32, progress: &ProgressBar) -> Result<RenderOutput> {
+    fn render(&self, accel: Accel, cam: &Camera, seed: u32, progress: &ProgressBar) -> Result<RenderOutput> {
+        if let Accel::Kd(_) = accel {
+            self.tree()?;
+        }
         let (w, h) = (cam.width, cam.height);
         let n = (w * h) as usize;
         let mut hits = vec![Hit::NONE; n];
         let mut radiance = vec![[0.0f32; 4]; n];
         let chunk = (w * ROWS_PER_TASK) as usize;
         progress.set_length(n as u64);
-        hits.par_chunks_mut(chunk)
-            .zip(radiance.par_chunks_mut(chunk))
-            .enumerate()
-            .for_each(|(c, (hs, rs))| {
+        hits.par_chunks_mut(chunk).zip(radiance.par_chunks_mut(chunk)).enumerate().try_for_each(
+            |(c, (hs, rs))| -> Result<()> {
                 for (k, (hit, rad)) in hs.iter_mut().zip(rs.iter_mut()).enumerate() {
                     let pixel = (c * chunk + k) as u32;
                     let ray = camera::primary_ray(cam, pixel);
-                    *hit = brute::closest_hit(&ray, &self.tris);
+                    *hit = self.closest(accel, &ray, &mut NoStats)?;
                     let (shadow, terms) = shade::light_sample(
                         seed,
                         pixel,
@@ -59,10 +104,12 @@ impl Tracer for CpuTracer {
                         &self.lights,
                         self.lights.len() as u32,
                     );
-                    *rad = shade::resolve(&terms, brute::any_hit(&shadow, &self.tris));
+                    *rad = shade::resolve(&terms, self.any(accel, &shadow, &mut NoStats)?);
                 }
                 progress.inc(hs.len() as u64);
-            });
+                Ok(())
+            },
+        )?;
         Ok(RenderOutput { width: w, height: h, hits, radiance })
     }
 }

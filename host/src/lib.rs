@@ -4,6 +4,7 @@ pub mod cli;
 pub mod cpu;
 pub mod gpu;
 pub mod image_out;
+pub mod kdtree;
 pub mod scene;
 pub mod trace;
 
@@ -11,4 +12,4 @@ pub use cpu::CpuTracer;
 pub use gpu::tracer::GpuTracer;
 pub use gpu::Gpu;
 pub use scene::Scene;
-pub use trace::{RenderOutput, Tracer};
+pub use trace::{Accel, RenderOutput, Tracer};

@@ -6,6 +6,10 @@
 //! 65 535-workgroup limit of one dimension: `item = x + y · (groups_x · 64)`.
 #![no_std]
 
+use kdray_shared::aabb::Aabb;
+use kdray_shared::kdtree::{
+    traverse, AnyHit, Closest, FullStack, KdNode, KdTree, NoStack, NoStats, ShortStack,
+};
 use kdray_shared::{
     brute, camera, shade, FrameParams, Hit, Light, Material, Ray, ShadeTerms, Triangle,
 };
@@ -33,35 +37,86 @@ pub fn camera_rays(
     }
 }
 
-#[spirv(compute(threads(64)))]
-pub fn closest_hit_brute(
-    #[spirv(global_invocation_id)] id: UVec3,
-    #[spirv(num_workgroups)] groups: UVec3,
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &FrameParams,
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[Ray],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] tris: &[Triangle],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] hits: &mut [Hit],
-) {
-    let i = item(id, groups);
-    if i < params.count {
-        hits[i as usize] = brute::closest_hit(&rays[i as usize], tris);
+/// Closest-hit and any-hit entry points for one way of finding hits. All of them share one
+/// binding layout: 1 rays, 2 triangles, 3 kd-tree nodes, 4 primitive indices, 5 results
+/// (brute force leaves 3 and 4 unused).
+macro_rules! trace_kernels {
+    ($closest:ident, $any:ident, |$tree:ident, $ray:ident, $q:ident| $run:expr) => {
+        #[spirv(compute(threads(64)))]
+        pub fn $closest(
+            #[spirv(global_invocation_id)] id: UVec3,
+            #[spirv(num_workgroups)] groups: UVec3,
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &FrameParams,
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[Ray],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] tris: &[Triangle],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] nodes: &[KdNode],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] prims: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] hits: &mut [Hit],
+        ) {
+            let i = item(id, groups);
+            if i < params.count {
+                let $tree = tree(params, tris, nodes, prims);
+                let $ray = &rays[i as usize];
+                let mut $q = Closest::new($ray);
+                $run;
+                hits[i as usize] = $q.hit;
+            }
+        }
+
+        #[spirv(compute(threads(64)))]
+        pub fn $any(
+            #[spirv(global_invocation_id)] id: UVec3,
+            #[spirv(num_workgroups)] groups: UVec3,
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &FrameParams,
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[Ray],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] tris: &[Triangle],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] nodes: &[KdNode],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] prims: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] occluded: &mut [u32],
+        ) {
+            let i = item(id, groups);
+            if i < params.count {
+                let $tree = tree(params, tris, nodes, prims);
+                let $ray = &rays[i as usize];
+                let mut $q = AnyHit::new($ray);
+                $run;
+                occluded[i as usize] = $q.found as u32;
+            }
+        }
+    };
+}
+
+#[inline(always)]
+fn tree<'a>(params: &FrameParams, tris: &'a [Triangle], nodes: &'a [KdNode], prims: &'a [u32]) -> KdTree<'a> {
+    KdTree { nodes, prims, tris, bounds: Aabb { min: params.bounds_min, max: params.bounds_max } }
+}
+
+/// The oracle: every triangle, no tree.
+trait BruteQuery {
+    fn brute(&mut self, tree: &KdTree, ray: &Ray);
+}
+impl BruteQuery for Closest {
+    #[inline(always)]
+    fn brute(&mut self, tree: &KdTree, ray: &Ray) {
+        self.hit = brute::closest_hit(ray, tree.tris);
+    }
+}
+impl BruteQuery for AnyHit {
+    #[inline(always)]
+    fn brute(&mut self, tree: &KdTree, ray: &Ray) {
+        self.found = brute::any_hit(ray, tree.tris);
     }
 }
 
-#[spirv(compute(threads(64)))]
-pub fn any_hit_brute(
-    #[spirv(global_invocation_id)] id: UVec3,
-    #[spirv(num_workgroups)] groups: UVec3,
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &FrameParams,
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[Ray],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] tris: &[Triangle],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] occluded: &mut [u32],
-) {
-    let i = item(id, groups);
-    if i < params.count {
-        occluded[i as usize] = brute::any_hit(&rays[i as usize], tris) as u32;
-    }
-}
+trace_kernels!(closest_brute, any_brute, |t, r, q| q.brute(&t, r));
+trace_kernels!(closest_stack, any_stack, |t, r, q| traverse::<_, _, _, false>(&t, r, &mut q, &mut FullStack::new(), &mut NoStats));
+trace_kernels!(closest_restart, any_restart, |t, r, q| traverse::<_, _, _, false>(&t, r, &mut q, &mut NoStack::new(), &mut NoStats));
+trace_kernels!(closest_pushdown, any_pushdown, |t, r, q| traverse::<_, _, _, true>(&t, r, &mut q, &mut NoStack::new(), &mut NoStats));
+trace_kernels!(closest_shortstack1, any_shortstack1, |t, r, q| traverse::<_, _, _, true>(&t, r, &mut q, &mut ShortStack::<1>::new(), &mut NoStats));
+trace_kernels!(closest_shortstack2, any_shortstack2, |t, r, q| traverse::<_, _, _, true>(&t, r, &mut q, &mut ShortStack::<2>::new(), &mut NoStats));
+trace_kernels!(closest_shortstack3, any_shortstack3, |t, r, q| traverse::<_, _, _, true>(&t, r, &mut q, &mut ShortStack::<3>::new(), &mut NoStats));
+trace_kernels!(closest_shortstack4, any_shortstack4, |t, r, q| traverse::<_, _, _, true>(&t, r, &mut q, &mut ShortStack::<4>::new(), &mut NoStats));
+trace_kernels!(closest_shortstack8, any_shortstack8, |t, r, q| traverse::<_, _, _, true>(&t, r, &mut q, &mut ShortStack::<8>::new(), &mut NoStats));
 
 #[spirv(compute(threads(64)))]
 pub fn light_sample(

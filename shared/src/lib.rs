@@ -7,6 +7,7 @@
 pub mod aabb;
 pub mod brute;
 pub mod camera;
+pub mod kdtree;
 pub mod math;
 pub mod pod;
 pub mod ray;

@@ -98,6 +98,11 @@ pub struct FrameParams {
     pub first: u32,
     pub seed: u32,
     pub light_count: u32,
+    /// Scene box (the kd-tree's root cell).
+    pub bounds_min: [f32; 3],
+    pub _pad0: u32,
+    pub bounds_max: [f32; 3],
+    pub _pad1: u32,
     pub camera: Camera,
 }
 

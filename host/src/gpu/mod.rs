@@ -8,6 +8,7 @@ use bytemuck::Pod;
 use kdray_shared::FrameParams;
 use kernels::{Kernel, WORKGROUP};
 use std::collections::HashMap;
+use std::sync::Mutex;
 use std::time::Duration;
 
 static SPIRV: &[u8] = include_bytes!(env!("kdray_shader.spv"));
@@ -21,7 +22,9 @@ pub struct Gpu {
     pub queue: wgpu::Queue,
     pub info: wgpu::AdapterInfo,
     pub limits: wgpu::Limits,
-    pipelines: HashMap<Kernel, (wgpu::ComputePipeline, wgpu::BindGroupLayout)>,
+    module: wgpu::ShaderModule,
+    /// Created on first use: drivers compile each entry point when its pipeline is made.
+    pipelines: Mutex<HashMap<Kernel, (wgpu::ComputePipeline, wgpu::BindGroupLayout)>>,
 }
 
 fn device_rank(t: wgpu::DeviceType) -> u32 {
@@ -89,10 +92,10 @@ impl Gpu {
             .chunks_exact(4)
             .map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
             .collect();
-        let entry_points: Vec<wgpu::PassthroughShaderEntryPoint> = Kernel::ALL
+        let entry_points: Vec<wgpu::PassthroughShaderEntryPoint> = kernels::ENTRY_POINTS
             .iter()
-            .map(|k| wgpu::PassthroughShaderEntryPoint {
-                name: k.entry_point().into(),
+            .map(|name| wgpu::PassthroughShaderEntryPoint {
+                name: (*name).into(),
                 workgroup_size: (WORKGROUP, 1, 1),
             })
             .collect();
@@ -106,30 +109,36 @@ impl Gpu {
                 ..Default::default()
             })
         };
-        let mut pipelines = HashMap::new();
-        for k in Kernel::ALL {
-            let mut entries = vec![storage_entry(0, true)];
-            entries.extend(k.bindings().iter().enumerate().map(|(i, ro)| storage_entry(i as u32 + 1, *ro)));
-            let bgl = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                label: Some(k.entry_point()),
-                entries: &entries,
-            });
-            let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: Some(k.entry_point()),
-                bind_group_layouts: &[Some(&bgl)],
-                immediate_size: 0,
-            });
-            let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(k.entry_point()),
-                layout: Some(&layout),
-                module: &module,
-                entry_point: Some(k.entry_point()),
-                compilation_options: Default::default(),
-                cache: None,
-            });
-            pipelines.insert(k, (pipeline, bgl));
+        Ok(Gpu { device, queue, info, limits, module, pipelines: Mutex::new(HashMap::new()) })
+    }
+
+    fn pipeline(&self, k: Kernel) -> Result<(wgpu::ComputePipeline, wgpu::BindGroupLayout)> {
+        let mut cache = self.pipelines.lock().expect("pipeline cache");
+        if let Some(p) = cache.get(&k) {
+            return Ok(p.clone());
         }
-        Ok(Gpu { device, queue, info, limits, pipelines })
+        let name = k.entry_point()?;
+        let mut entries = vec![storage_entry(0, true)];
+        entries.extend(k.bindings().iter().enumerate().map(|(i, ro)| storage_entry(i as u32 + 1, *ro)));
+        let bgl = self.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some(name),
+            entries: &entries,
+        });
+        let layout = self.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some(name),
+            bind_group_layouts: &[Some(&bgl)],
+            immediate_size: 0,
+        });
+        let pipeline = self.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(name),
+            layout: Some(&layout),
+            module: &self.module,
+            entry_point: Some(name),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        cache.insert(k, (pipeline.clone(), bgl.clone()));
+        Ok((pipeline, bgl))
     }
 
     pub fn adapter_line(&self) -> String {
@@ -192,7 +201,7 @@ impl Gpu {
         params: &FrameParams,
         buffers: &[&wgpu::Buffer],
     ) -> Result<()> {
-        let (pipeline, bgl) = &self.pipelines[&kernel];
+        let (pipeline, bgl) = &self.pipeline(kernel)?;
         assert_eq!(buffers.len(), kernel.bindings().len(), "binding count of {kernel:?}");
         let pbuf = self.upload("params", std::slice::from_ref(params))?;
         let mut entries = vec![wgpu::BindGroupEntry { binding: 0, resource: pbuf.as_entire_binding() }];
@@ -203,13 +212,13 @@ impl Gpu {
                 .map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32 + 1, resource: b.as_entire_binding() }),
         );
         let bg = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some(kernel.entry_point()),
+            label: Some(kernel.entry_point()?),
             layout: bgl,
             entries: &entries,
         });
         let (gx, gy) = self.grid(params.count)?;
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some(kernel.entry_point()),
+            label: Some(kernel.entry_point()?),
             timestamp_writes: None,
         });
         pass.set_pipeline(pipeline);

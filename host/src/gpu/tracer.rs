@@ -3,29 +3,42 @@
 //! of one submission (so no dispatch runs long enough to trip a driver watchdog).
 use super::kernels::Kernel;
 use super::Gpu;
+use crate::kdtree::KdTreeData;
 use crate::scene::Scene;
-use crate::trace::{RenderOutput, Tracer};
+use crate::trace::{Accel, RenderOutput, Tracer};
 use anyhow::Result;
 use indicatif::ProgressBar;
 use kdray_shared::{Camera, FrameParams, Hit, Ray, ShadeTerms};
 
 /// Upper bound on ray-triangle tests of one brute-force submission.
 const MAX_TESTS_PER_SUBMIT: u64 = 1 << 30;
+/// Upper bound on rays of one kd-tree submission (each visits O(log N) nodes).
+const MAX_KD_RAYS_PER_SUBMIT: u64 = 1 << 22;
 
 pub struct GpuTracer<'g> {
     gpu: &'g Gpu,
     tris: wgpu::Buffer,
     materials: wgpu::Buffer,
     lights: wgpu::Buffer,
+    nodes: wgpu::Buffer,
+    prims: wgpu::Buffer,
+    bounds: kdray_shared::aabb::Aabb,
+    has_tree: bool,
     tri_count: u64,
     light_count: u32,
 }
 
 impl<'g> GpuTracer<'g> {
-    pub fn new(gpu: &'g Gpu, scene: &Scene) -> Result<Self> {
+    /// `tree` is needed only for the kd traversals.
+    pub fn new(gpu: &'g Gpu, scene: &Scene, tree: Option<&KdTreeData>) -> Result<Self> {
         let lights = scene.lights();
+        let (lo, hi) = scene.bounds();
         Ok(GpuTracer {
             gpu,
+            nodes: gpu.upload("kd-tree node", tree.map(|t| &t.nodes[..]).unwrap_or(&[]))?,
+            prims: gpu.upload("kd-tree primitive index", tree.map(|t| &t.prims[..]).unwrap_or(&[]))?,
+            bounds: tree.map(|t| t.bounds).unwrap_or(kdray_shared::aabb::Aabb { min: lo.to_array(), max: hi.to_array() }),
+            has_tree: tree.is_some(),
             tris: gpu.upload("triangle", &scene.triangles)?,
             materials: gpu.upload("material", &scene.materials)?,
             lights: gpu.upload("light", &lights)?,
@@ -36,25 +49,43 @@ impl<'g> GpuTracer<'g> {
 
     /// Items per batch: bounded by the binding limit (largest per-item record: 32 bytes) and by
     /// the brute-force work per submission; a multiple of the workgroup size.
-    fn batch_size(&self, total: usize) -> usize {
+    fn batch_size(&self, accel: Accel, total: usize) -> usize {
         let by_binding = self.gpu.max_binding() / 32;
-        let by_work = (MAX_TESTS_PER_SUBMIT / self.tri_count.max(1)).max(4096);
+        let by_work = match accel {
+            Accel::Brute => (MAX_TESTS_PER_SUBMIT / self.tri_count.max(1)).max(4096),
+            Accel::Kd(_) => MAX_KD_RAYS_PER_SUBMIT,
+        };
         let b = by_binding.min(by_work).min(total.max(1) as u64) as usize;
         if b >= total { total.max(1) } else { (b / 64).max(1) * 64 }
     }
 
     fn params(&self, first: usize, count: usize) -> FrameParams {
-        FrameParams { count: count as u32, first: first as u32, light_count: self.light_count, ..Default::default() }
+        FrameParams {
+            count: count as u32,
+            first: first as u32,
+            light_count: self.light_count,
+            bounds_min: self.bounds.min,
+            bounds_max: self.bounds.max,
+            ..Default::default()
+        }
     }
 
-    fn query<T: bytemuck::Pod>(&self, kernel: Kernel, rays: &[Ray]) -> Result<Vec<T>> {
+    fn check(&self, accel: Accel) -> Result<()> {
+        if matches!(accel, Accel::Kd(_)) && !self.has_tree {
+            anyhow::bail!("no kd-tree was built for this scene");
+        }
+        Ok(())
+    }
+
+    fn query<T: bytemuck::Pod>(&self, accel: Accel, kernel: Kernel, rays: &[Ray]) -> Result<Vec<T>> {
         let mut out = Vec::with_capacity(rays.len());
-        let b = self.batch_size(rays.len());
+        let b = self.batch_size(accel, rays.len());
         for (i, batch) in rays.chunks(b).enumerate() {
             let rbuf = self.gpu.upload("ray", batch)?;
             let obuf = self.gpu.storage::<T>("result", batch.len())?;
             let mut enc = self.gpu.encoder();
-            self.gpu.record(&mut enc, kernel, &self.params(i * b, batch.len()), &[&rbuf, &self.tris, &obuf])?;
+            let p = self.params(i * b, batch.len());
+            self.gpu.record(&mut enc, kernel, &p, &[&rbuf, &self.tris, &self.nodes, &self.prims, &obuf])?;
             self.gpu.submit_wait(enc)?;
             out.extend(self.gpu.read::<T>(&obuf, batch.len())?);
         }
@@ -67,18 +98,21 @@ impl Tracer for GpuTracer<'_> {
         self.gpu.adapter_line()
     }
 
-    fn closest_hits(&self, rays: &[Ray]) -> Result<Vec<Hit>> {
-        self.query::<Hit>(Kernel::ClosestHitBrute, rays)
+    fn closest_hits(&self, accel: Accel, rays: &[Ray]) -> Result<Vec<Hit>> {
+        self.check(accel)?;
+        self.query::<Hit>(accel, Kernel::Closest(accel), rays)
     }
 
-    fn any_hits(&self, rays: &[Ray]) -> Result<Vec<bool>> {
-        Ok(self.query::<u32>(Kernel::AnyHitBrute, rays)?.into_iter().map(|o| o != 0).collect())
+    fn any_hits(&self, accel: Accel, rays: &[Ray]) -> Result<Vec<bool>> {
+        self.check(accel)?;
+        Ok(self.query::<u32>(accel, Kernel::Any(accel), rays)?.into_iter().map(|o| o != 0).collect())
     }
 
-    fn render(&self, cam: &Camera, seed: u32, progress: &ProgressBar) -> Result<RenderOutput> {
+    fn render(&self, accel: Accel, cam: &Camera, seed: u32, progress: &ProgressBar) -> Result<RenderOutput> {
+        self.check(accel)?;
         let g = self.gpu;
         let n = (cam.width * cam.height) as usize;
-        let b = self.batch_size(n);
+        let b = self.batch_size(accel, n);
         let rays = g.storage::<Ray>("primary ray", b)?;
         let hits = g.storage::<Hit>("hit", b)?;
         let shadow = g.storage::<Ray>("shadow ray", b)?;
@@ -93,14 +127,14 @@ impl Tracer for GpuTracer<'_> {
             let p = FrameParams { seed, camera: *cam, ..self.params(first, count) };
             let mut enc = g.encoder();
             g.record(&mut enc, Kernel::CameraRays, &p, &[&rays])?;
-            g.record(&mut enc, Kernel::ClosestHitBrute, &p, &[&rays, &self.tris, &hits])?;
+            g.record(&mut enc, Kernel::Closest(accel), &p, &[&rays, &self.tris, &self.nodes, &self.prims, &hits])?;
             g.record(
                 &mut enc,
                 Kernel::LightSample,
                 &p,
                 &[&rays, &self.tris, &hits, &self.materials, &self.lights, &shadow, &terms],
             )?;
-            g.record(&mut enc, Kernel::AnyHitBrute, &p, &[&shadow, &self.tris, &occluded])?;
+            g.record(&mut enc, Kernel::Any(accel), &p, &[&shadow, &self.tris, &self.nodes, &self.prims, &occluded])?;
             g.record(&mut enc, Kernel::Resolve, &p, &[&terms, &occluded, &radiance])?;
             g.submit_wait(enc)?;
             out.hits.extend(g.read::<Hit>(&hits, count)?);

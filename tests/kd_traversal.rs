@@ -1,0 +1,212 @@
+//! Every kd-tree traversal (full stack, kd-restart, push-down, short-stack 1..8) against the
+//! brute-force oracle, natively and on the GPU, on the hard cases of kd-tree traversal and on
+//! random rays.
+mod common;
+
+use glam::Vec3;
+use kdray::kdtree::{build, BuildOptions, KdTreeData};
+use kdray::{scene, Accel, CpuTracer, GpuTracer, Scene, Tracer};
+use kdray_shared::kdtree::{Algorithm, MAX_SHORT_STACK};
+use kdray_shared::rng::Rng;
+use kdray_shared::{Hit, Ray};
+
+fn cpu_algorithms() -> Vec<Algorithm> {
+    let mut v = vec![Algorithm::Stack, Algorithm::Restart, Algorithm::PushDown];
+    v.extend((1..=MAX_SHORT_STACK).map(Algorithm::ShortStack));
+    v
+}
+
+/// Two hits agree: same triangle, or a tie (another triangle at the same point: a shared edge
+/// or vertex, where the GPU's division may round t differently).
+fn agree(a: &Hit, b: &Hit) -> bool {
+    a.prim == b.prim || (a.is_hit() && b.is_hit() && (a.t - b.t).abs() <= 1e-6 * a.t.abs())
+}
+
+/// GPU kernels that get every random ray; the others get `GPU_SAMPLE` of them (lavapipe in CI
+/// runs on two CPU cores).
+const GPU_FULL: [Accel; 2] = [Accel::Kd(Algorithm::Stack), Accel::Kd(Algorithm::ShortStack(3))];
+const GPU_SAMPLE: usize = 1 << 16;
+
+/// Checks every traversal against the oracle; `rays[..hard]` are hand-made hard cases, the
+/// rest random. Natively the hits must be bit-identical (same triangle test, same inputs). On
+/// the GPU a hit may differ only as a tie (the same point on two triangles), and on random rays
+/// at most 1e-5 of the ids may differ. Returns the oracle's hits.
+fn check(name: &str, scene: &Scene, tree: &KdTreeData, rays: &[Ray], hard: usize) -> Vec<Hit> {
+    let cpu = CpuTracer::new(scene, Some(tree));
+    let oracle = cpu.closest_hits(Accel::Brute, rays).unwrap();
+    let oracle_any = cpu.any_hits(Accel::Brute, rays).unwrap();
+    for alg in cpu_algorithms() {
+        let hits = cpu.closest_hits(Accel::Kd(alg), rays).unwrap();
+        let bad: Vec<usize> = (0..rays.len()).filter(|&i| hits[i] != oracle[i]).collect();
+        if let Some(&i) = bad.first() {
+            panic!(
+                "{name}: CPU {alg:?} differs from the oracle on {} of {} rays; first: {:?} gives {:?}, oracle {:?}",
+                bad.len(), rays.len(), rays[i], hits[i], oracle[i]
+            );
+        }
+        let any = cpu.any_hits(Accel::Kd(alg), rays).unwrap();
+        let bad = (0..rays.len()).filter(|&i| any[i] != oracle_any[i]).count();
+        assert_eq!(bad, 0, "{name}: CPU {alg:?} any-hit differs on {bad} rays");
+    }
+    if let Some(g) = common::gpu() {
+        let gpu = GpuTracer::new(g, scene, Some(tree)).unwrap();
+        for accel in Accel::all().into_iter().skip(1) {
+            let n = if GPU_FULL.contains(&accel) { rays.len() } else { (hard + GPU_SAMPLE).min(rays.len()) };
+            let hits = gpu.closest_hits(accel, &rays[..n]).unwrap();
+            let bad: Vec<usize> = (0..n).filter(|&i| !agree(&oracle[i], &hits[i])).collect();
+            if let Some(&i) = bad.first() {
+                panic!(
+                    "{name}: GPU {} misses the oracle's hit on {} of {n} rays; first: {:?} gives {:?}, oracle {:?}",
+                    accel.name(), bad.len(), rays[i], hits[i], oracle[i]
+                );
+            }
+            let differ = (hard..n).filter(|&i| hits[i].prim != oracle[i].prim).count();
+            let random = n - hard;
+            assert!(differ as f64 <= 1e-5 * random as f64, "{name}: GPU {} ids differ on {differ} of {random} random rays", accel.name());
+            let any = gpu.any_hits(accel, &rays[..n]).unwrap();
+            let bad = (0..n).filter(|&i| any[i] != oracle_any[i]).count();
+            assert!(bad as f64 <= 1e-5 * n as f64, "{name}: GPU {} any-hit differs on {bad} of {n} rays", accel.name());
+            println!("{name}: GPU {} on {n} rays: {differ} ids differ on random rays", accel.name());
+        }
+    }
+    oracle
+}
+
+/// Split planes of the tree: (axis, position) of every interior node.
+fn split_planes(tree: &KdTreeData) -> Vec<(usize, f32)> {
+    tree.nodes.iter().filter(|n| !n.is_leaf()).map(|n| (n.axis(), n.split())).collect()
+}
+
+/// The hard cases of kd-tree traversal for a scene, then `n_random` random rays; returns the
+/// rays and the number of hard cases.
+fn hard_rays(scene: &Scene, tree: &KdTreeData, n_random: usize, seed: u32) -> (Vec<Ray>, usize) {
+    let (lo, hi) = scene.bounds();
+    let ext = hi - lo;
+    let mut rng = Rng::new(seed, 17);
+    let point = |rng: &mut Rng| lo - ext * 0.1 + ext * 1.2 * Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+    let mut rays = Vec::new();
+    let dirs = common::random_dirs(n_random + 4096, seed);
+    for (k, p) in split_planes(tree).into_iter().take(400) {
+        for j in 0..6 {
+            // Axis-aligned rays lying exactly in the split plane (direction component ±0).
+            let mut o = point(&mut rng);
+            o[k] = p;
+            let mut d = [0.0f32; 3];
+            let a = (k + 1 + j % 2) % 3;
+            d[a] = if j < 3 { 1.0 } else { -1.0 };
+            d[k] = if j % 3 == 0 { -0.0 } else { 0.0 };
+            rays.push(Ray::new(o.to_array(), d, 0.0, f32::INFINITY));
+            // Parallel to the plane but in general direction.
+            let mut d2 = Vec3::from(dirs[rays.len() % dirs.len()]);
+            d2[k] = 0.0;
+            rays.push(Ray::new(o.to_array(), d2.to_array(), 0.0, f32::INFINITY));
+            // Starting exactly on the plane in a random direction.
+            rays.push(Ray::new(o.to_array(), dirs[(rays.len() * 7) % dirs.len()], 0.0, f32::INFINITY));
+        }
+    }
+    // Degenerate intervals and invalid rays.
+    let c = ((lo + hi) * 0.5).to_array();
+    for d in [[1.0, 0.0, 0.0], [0.3, -0.5, 0.2]] {
+        rays.push(Ray::new(c, d, 0.0, 0.0));
+        rays.push(Ray::new(c, d, 5.0, 1.0));
+        rays.push(Ray::new([f32::NAN, 0.0, 0.0], d, 0.0, f32::INFINITY));
+        rays.push(Ray::new(c, [f32::INFINITY, 0.0, 1.0], 0.0, f32::INFINITY));
+        rays.push(Ray::new(c, d, 0.0, f32::NAN));
+    }
+    let hard = rays.len();
+    // Random rays from around the scene.
+    for d in dirs.iter().take(n_random) {
+        rays.push(Ray::new(point(&mut rng).to_array(), *d, 0.0, f32::INFINITY));
+    }
+    (rays, hard)
+}
+
+/// A flat cell: a 24 × 24 grid of quads in the plane z = 1 (many coplanar triangles in a split
+/// plane) inside a second grid folded along x = 0.5 (shared edges).
+fn grid_scene() -> Scene {
+    let mut v = Vec::new();
+    let mut f = Vec::new();
+    let n = 24u32;
+    for plane in 0..2 {
+        let base = v.len() as u32;
+        for j in 0..=n {
+            for i in 0..=n {
+                let (x, y) = (i as f32 / n as f32, j as f32 / n as f32);
+                v.push(if plane == 0 { [x, y, 1.0] } else { [0.5, x, y * 2.0] });
+            }
+        }
+        for j in 0..n {
+            for i in 0..n {
+                let a = base + j * (n + 1) + i;
+                f.push([a, a + 1, a + n + 2]);
+                f.push([a, a + n + 2, a + n + 1]);
+            }
+        }
+    }
+    common::mesh_scene("grid", &v, &f)
+}
+
+fn run_scene(name: &str, scene: &Scene, n_random: usize) {
+    let tree = build(&scene.triangles, &BuildOptions::default());
+    assert!(tree.stats.nodes > 1, "{name}: the tree splits");
+    let (rays, hard) = hard_rays(scene, &tree, n_random, 11);
+    let hits = check(name, scene, &tree, &rays, hard);
+    let hit_frac = hits.iter().filter(|h| h.is_hit()).count() as f64 / hits.len() as f64;
+    println!("{name}: {} rays, {:.1} % hit, tree {:?}", rays.len(), 100.0 * hit_frac, tree.stats);
+    assert!(hit_frac > 0.05, "{name}: the rays must hit something");
+}
+
+#[test]
+fn cornell_box_hard_cases_and_random_rays() {
+    run_scene("cornell", &scene::load("cornell").unwrap(), 1_000_000);
+}
+
+#[test]
+fn flat_cells_and_coplanar_grids() {
+    run_scene("grid", &grid_scene(), 200_000);
+}
+
+/// Embree's watertightness test through every traversal: a closed sphere translated far from
+/// the origin, 10^6 rays from its centre, no misses.
+#[test]
+fn closed_sphere_far_from_origin_every_traversal() {
+    let center = Vec3::new(148376.0, 1234.0, -223423.0);
+    let (v, f) = common::icosphere(center, 1000.0, 4);
+    let scene = common::mesh_scene("sphere", &v, &f);
+    let tree = build(&scene.triangles, &BuildOptions::default());
+    let rays: Vec<Ray> = common::random_dirs(1_000_000, 5)
+        .into_iter()
+        .map(|d| Ray::new(center.to_array(), d, 0.0, f32::INFINITY))
+        .collect();
+    let cpu = CpuTracer::new(&scene, Some(&tree));
+    for alg in cpu_algorithms() {
+        let misses = cpu.closest_hits(Accel::Kd(alg), &rays).unwrap().iter().filter(|h| !h.is_hit()).count();
+        assert_eq!(misses, 0, "CPU {alg:?}: {misses} of 10^6 rays leaked");
+        let misses = cpu.any_hits(Accel::Kd(alg), &rays).unwrap().iter().filter(|h| !**h).count();
+        assert_eq!(misses, 0, "CPU {alg:?} any-hit: {misses} of 10^6 rays leaked");
+    }
+    if let Some(g) = common::gpu() {
+        let gpu = GpuTracer::new(g, &scene, Some(&tree)).unwrap();
+        for accel in Accel::all().into_iter().skip(1) {
+            let rays = if GPU_FULL.contains(&accel) { &rays[..] } else { &rays[..GPU_SAMPLE] };
+            let misses = gpu.closest_hits(accel, &rays).unwrap().iter().filter(|h| !h.is_hit()).count();
+            assert_eq!(misses, 0, "GPU {}: {misses} of {} rays leaked", accel.name(), rays.len());
+            let misses = gpu.any_hits(accel, &rays).unwrap().iter().filter(|h| !**h).count();
+            assert_eq!(misses, 0, "GPU {} any-hit: {misses} of {} rays leaked", accel.name(), rays.len());
+        }
+    }
+    // And the hard cases on the same sphere, checked against the oracle.
+    let (rays, hard) = hard_rays(&scene, &tree, 20_000, 3);
+    check("sphere", &scene, &tree, &rays, hard);
+}
+
+#[test]
+fn stanford_bunny_from_shared_scenes() {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/scenes/stanford-bunny.obj");
+    if !std::path::Path::new(path).exists() {
+        eprintln!("skipped: {path} not present (the shared scenes folder lies beside the checkout)");
+        return;
+    }
+    let scene = scene::load(path).unwrap();
+    run_scene("bunny", &scene, 50_000);
+}
