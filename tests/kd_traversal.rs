@@ -210,3 +210,31 @@ fn stanford_bunny_from_shared_scenes() {
     let scene = scene::load(path).unwrap();
     run_scene("bunny", &scene, 50_000);
 }
+
+/// The traversal benchmark's table: every row has a speed, per-ray counts relative to the full
+/// stack, and an error column that is zero here (the kd traversals are exact).
+#[test]
+fn traversal_bench_rows_carry_speed_and_error() {
+    let scene = scene::load("cornell").unwrap();
+    let tree = build(&scene.triangles, &BuildOptions::default());
+    let pb = indicatif::ProgressBar::hidden();
+    let rows = kdray::bench::traversals(&scene, &tree, 32, common::gpu(), 1, &pb).unwrap();
+    assert_eq!(rows.len(), 2 * (Accel::all().len() - 1));
+    for r in &rows {
+        assert!(r.mrays_wall > 0.0 && r.nodes >= 1.0, "{r:?}");
+        assert_eq!(r.oracle_mismatch, 0.0, "{r:?}");
+        if r.traversal == "stack" {
+            assert_eq!(r.visits_vs_stack, 0.0);
+            assert_eq!(r.restarts, 0.0);
+        } else {
+            assert!(r.visits_vs_stack >= 0.0, "no traversal visits fewer nodes than the full stack: {r:?}");
+        }
+    }
+    let dir = std::env::temp_dir().join(format!("kdray-bench-{}", std::process::id()));
+    kdray::bench::write_tables(&dir, "t", "test device", &rows).unwrap();
+    let csv = std::fs::read_to_string(dir.join("t.csv")).unwrap();
+    assert_eq!(csv.lines().count(), rows.len() + 1);
+    assert!(csv.lines().next().unwrap().contains("oracle_mismatch_rate"));
+    let md = std::fs::read_to_string(dir.join("t.md")).unwrap();
+    assert!(md.contains("test device") && md.contains("| cornell | 32 | primary |"));
+}

@@ -53,6 +53,23 @@ pub enum Command {
     },
     /// List the GPU adapters wgpu sees.
     Adapters,
+    /// Benchmarks; writes CSV and Markdown tables into --out.
+    Bench {
+        /// `traversals`: every kd traversal, primary and shadow rays, per scene.
+        suite: String,
+        /// Scenes (repeatable): `cornell`, a .obj or a .toml file.
+        #[arg(long, default_values_t = vec!["cornell".to_string()])]
+        scene: Vec<String>,
+        #[arg(long, value_enum, default_value = "gpu")]
+        device: DeviceArg,
+        #[arg(long, default_value_t = 1024)]
+        size: u32,
+        /// Timed repetitions after one warm-up.
+        #[arg(long, default_value_t = 5)]
+        reps: usize,
+        #[arg(long, default_value = "bench-out")]
+        out: PathBuf,
+    },
 }
 
 fn progress(label: &str) -> ProgressBar {
@@ -76,6 +93,34 @@ pub fn run(cli: Cli) -> Result<()> {
             for a in list {
                 println!("{}", gpu::describe(&a.get_info()));
             }
+            Ok(())
+        }
+        Command::Bench { suite, scene: scenes, device, size, reps, out } => {
+            if suite != "traversals" {
+                bail!("unknown bench suite '{suite}' (known: traversals)");
+            }
+            if size == 0 || size > 4096 || reps == 0 {
+                bail!("--size must be 1..=4096 and --reps at least 1");
+            }
+            let gpu = match device {
+                DeviceArg::Gpu => Some(Gpu::new()?),
+                DeviceArg::Cpu => None,
+            };
+            let dev = crate::bench::device_line(gpu.as_ref());
+            println!("device: {dev}");
+            let mut rows = Vec::new();
+            for spec in &scenes {
+                let scene = scene::load(spec)?;
+                println!("scene {}: {} triangles", scene.name, scene.triangles.len());
+                let tree = build_tree(&scene);
+                let pb = progress(&scene.name);
+                rows.extend(crate::bench::traversals(&scene, &tree, size, gpu.as_ref(), reps, &pb)?);
+                pb.finish_and_clear();
+            }
+            let name = format!("traversals-{}", if gpu.is_some() { "gpu" } else { "cpu" });
+            crate::bench::write_tables(&out, &name, &dev, &rows)?;
+            print!("{}", std::fs::read_to_string(out.join(&name).with_extension("md"))?);
+            println!("wrote {}.csv and .md", out.join(&name).display());
             Ok(())
         }
         Command::Render { scene, device, size, exposure, seed, out, compare: cmp, traversal } => {

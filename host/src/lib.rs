@@ -1,5 +1,6 @@
 //! kdray: kd-tree ray casting and photon mapping written once in Rust (`kdray-shared`), run
 //! natively on the CPU and as SPIR-V compute kernels on any Vulkan GPU through wgpu.
+pub mod bench;
 pub mod cli;
 pub mod cpu;
 pub mod gpu;

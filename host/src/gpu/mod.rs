@@ -22,6 +22,8 @@ pub struct Gpu {
     pub queue: wgpu::Queue,
     pub info: wgpu::AdapterInfo,
     pub limits: wgpu::Limits,
+    /// Whether passes can carry timestamp queries (GPU-side kernel times).
+    pub timestamps: bool,
     module: wgpu::ShaderModule,
     /// Created on first use: drivers compile each entry point when its pipeline is made.
     pipelines: Mutex<HashMap<Kernel, (wgpu::ComputePipeline, wgpu::BindGroupLayout)>>,
@@ -67,9 +69,13 @@ impl Gpu {
 
     pub fn with_adapter(adapter: wgpu::Adapter) -> Result<Gpu> {
         let info = adapter.get_info();
-        let features = wgpu::Features::PASSTHROUGH_SHADERS;
+        let mut features = wgpu::Features::PASSTHROUGH_SHADERS;
         if !adapter.features().contains(features) {
             bail!("GPU adapter {} does not accept SPIR-V passthrough shaders", describe(&info));
+        }
+        let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
+        if timestamps {
+            features |= wgpu::Features::TIMESTAMP_QUERY;
         }
         // Ask for everything the adapter offers for storage buffers: scenes are limited by the
         // device, not by wgpu's conservative defaults.
@@ -109,7 +115,7 @@ impl Gpu {
                 ..Default::default()
             })
         };
-        Ok(Gpu { device, queue, info, limits, module, pipelines: Mutex::new(HashMap::new()) })
+        Ok(Gpu { device, queue, info, limits, timestamps, module, pipelines: Mutex::new(HashMap::new()) })
     }
 
     fn pipeline(&self, k: Kernel) -> Result<(wgpu::ComputePipeline, wgpu::BindGroupLayout)> {
@@ -201,6 +207,18 @@ impl Gpu {
         params: &FrameParams,
         buffers: &[&wgpu::Buffer],
     ) -> Result<()> {
+        self.record_timed(encoder, kernel, params, buffers, None)
+    }
+
+    /// `record`, writing timestamps at the start and end of the pass into queries 0 and 1.
+    pub fn record_timed(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        kernel: Kernel,
+        params: &FrameParams,
+        buffers: &[&wgpu::Buffer],
+        timer: Option<&wgpu::QuerySet>,
+    ) -> Result<()> {
         let (pipeline, bgl) = &self.pipeline(kernel)?;
         assert_eq!(buffers.len(), kernel.bindings().len(), "binding count of {kernel:?}");
         let pbuf = self.upload("params", std::slice::from_ref(params))?;
@@ -219,7 +237,11 @@ impl Gpu {
         let (gx, gy) = self.grid(params.count)?;
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some(kernel.entry_point()?),
-            timestamp_writes: None,
+            timestamp_writes: timer.map(|q| wgpu::ComputePassTimestampWrites {
+                query_set: q,
+                beginning_of_pass_write_index: Some(0),
+                end_of_pass_write_index: Some(1),
+            }),
         });
         pass.set_pipeline(pipeline);
         pass.set_bind_group(0, &bg, &[]);
@@ -239,6 +261,51 @@ impl Gpu {
             bail!("dispatch of {count} items exceeds the device's workgroup grid");
         }
         Ok((gx, gy.max(if gx == 0 { 0 } else { 1 })))
+    }
+
+    /// Runs one dispatch `reps` times after a warm-up; per run the wall time from submit to
+    /// completion and, where the adapter has timestamp queries, the GPU time of the pass (ms).
+    pub fn time_kernel(
+        &self,
+        kernel: Kernel,
+        params: &FrameParams,
+        buffers: &[&wgpu::Buffer],
+        reps: usize,
+    ) -> Result<Timing> {
+        let qs = self.timestamps.then(|| {
+            self.device.create_query_set(&wgpu::QuerySetDescriptor {
+                label: Some("kernel timer"),
+                ty: wgpu::QueryType::Timestamp,
+                count: 2,
+            })
+        });
+        let resolve = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("timestamps"),
+            size: 16,
+            usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let mut t = Timing::default();
+        for rep in 0..=reps {
+            let mut enc = self.encoder();
+            self.record_timed(&mut enc, kernel, params, buffers, qs.as_ref())?;
+            if let Some(q) = &qs {
+                enc.resolve_query_set(q, 0..2, &resolve, 0);
+            }
+            let start = std::time::Instant::now();
+            self.submit_wait(enc)?;
+            let wall = start.elapsed().as_secs_f64() * 1e3;
+            if rep == 0 {
+                continue; // warm-up
+            }
+            t.wall_ms.push(wall);
+            if qs.is_some() {
+                let ticks: Vec<u64> = self.read(&resolve, 2)?;
+                let ns = ticks[1].wrapping_sub(ticks[0]) as f64 * self.queue.get_timestamp_period() as f64;
+                t.gpu_ms.push(ns * 1e-6);
+            }
+        }
+        Ok(t)
     }
 
     pub fn encoder(&self) -> wgpu::CommandEncoder {
@@ -284,6 +351,22 @@ impl Gpu {
         staging.unmap();
         Ok(out)
     }
+}
+
+/// Repeated measurements of one dispatch, in milliseconds.
+#[derive(Clone, Debug, Default)]
+pub struct Timing {
+    pub wall_ms: Vec<f64>,
+    pub gpu_ms: Vec<f64>,
+}
+
+pub fn median(v: &[f64]) -> Option<f64> {
+    if v.is_empty() {
+        return None;
+    }
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    Some(s[s.len() / 2])
 }
 
 fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {

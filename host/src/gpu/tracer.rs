@@ -146,6 +146,21 @@ impl Tracer for GpuTracer<'_> {
     }
 }
 
+impl GpuTracer<'_> {
+    /// Times closest-hit (or any-hit) kernels of `accel` over `rays` (one batch).
+    pub fn time(&self, accel: Accel, closest: bool, rays: &[Ray], reps: usize) -> Result<super::Timing> {
+        self.check(accel)?;
+        if self.batch_size(accel, rays.len()) < rays.len() {
+            anyhow::bail!("{} rays do not fit one GPU batch", rays.len());
+        }
+        let rbuf = self.gpu.upload("ray", rays)?;
+        let obuf = self.gpu.storage::<Hit>("result", rays.len())?;
+        let k = if closest { Kernel::Closest(accel) } else { Kernel::Any(accel) };
+        let p = self.params(0, rays.len());
+        self.gpu.time_kernel(k, &p, &[&rbuf, &self.tris, &self.nodes, &self.prims, &obuf], reps)
+    }
+}
+
 /// Four numbers of each RNG stream (seed, index) for `count` indices, generated on the GPU.
 pub fn rng_streams(gpu: &Gpu, seed: u32, count: usize) -> Result<Vec<[u32; 4]>> {
     let out = gpu.storage::<[u32; 4]>("rng", count)?;

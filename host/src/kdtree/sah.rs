@@ -167,7 +167,7 @@ impl Ctx<'_> {
             // Candidate planes lie strictly between consecutive event positions (and between
             // the cell's faces and the geometry): left = triangles starting at or before the
             // lower position, right = those ending at or after the upper one.
-            let mut consider = |pos: f32, cl: usize, cr: usize, best: &mut Option<Split>| {
+            let consider = |pos: f32, cl: usize, cr: usize, best: &mut Option<Split>| {
                 if pos > lo && pos < hi {
                     let cost = self.sah(&w.cell, area_cell, k, pos, cl, cr);
                     if best.is_none_or(|b| cost < b.cost) {
