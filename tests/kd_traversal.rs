@@ -238,3 +238,46 @@ fn traversal_bench_rows_carry_speed_and_error() {
     let md = std::fs::read_to_string(dir.join("t.md")).unwrap();
     assert!(md.contains("test device") && md.contains("| cornell | 32 | primary |"));
 }
+
+#[test]
+fn cornell_box_with_a_chair() {
+    run_scene("cornell-chair", &scene::load("cornell-chair").unwrap(), 200_000);
+}
+
+#[test]
+fn generated_scenes_have_the_published_sizes() {
+    let chair = kdray::scene::procedural::chair();
+    assert_eq!(chair.f.len(), 1468, "one chair");
+    for k in [1u32, 4, 16] {
+        let s = scene::load(&format!("chairs:{k}")).unwrap();
+        assert_eq!(s.triangles.len(), 1468 * k as usize + 2, "chairs:{k} (+ floor)");
+        assert_eq!(s.dropped_degenerate, 0);
+    }
+    let c = scene::load("conference").unwrap();
+    assert!((270_000..300_000).contains(&c.triangles.len()), "conference: {}", c.triangles.len());
+    assert_eq!(c.lights().len(), 24, "12 lamp panels");
+    for bad in ["chairs:0", "chairs:5", "chairs:8", "chairs:x", "chairs:16384"] {
+        let e = format!("{:#}", scene::load(bad).unwrap_err());
+        assert!(e.contains("power of 4") || e.contains("use chairs:K"), "{bad}: {e}");
+    }
+}
+
+/// The chair's surface is closed: every edge, by position, is shared by exactly two triangles.
+#[test]
+fn chair_parts_are_closed() {
+    use std::collections::HashMap;
+    let m = kdray::scene::procedural::chair();
+    let key = |p: Vec3| (p.x.to_bits(), p.y.to_bits(), p.z.to_bits());
+    let mut edges: HashMap<_, i32> = HashMap::new();
+    for t in &m.f {
+        for k in 0..3 {
+            let (a, b) = (key(m.v[t[k] as usize]), key(m.v[t[(k + 1) % 3] as usize]));
+            if a == b {
+                continue;
+            }
+            *edges.entry((a.min(b), a.max(b))).or_default() += 1;
+        }
+    }
+    let open = edges.values().filter(|c| **c != 2).count();
+    assert_eq!(open, 0, "{open} edges are not shared by exactly two triangles");
+}

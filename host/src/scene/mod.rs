@@ -2,6 +2,7 @@
 pub mod cornell;
 pub mod file;
 pub mod obj;
+pub mod procedural;
 
 use anyhow::{bail, Result};
 use glam::Vec3;
@@ -198,13 +199,20 @@ impl Scene {
     }
 }
 
-/// Loads a scene by name: `cornell` (built in), a `.obj` file or a `.toml` scene file.
+/// Loads a scene by name: a built-in one (`cornell`, `cornell-chair`, `chairs:K`,
+/// `conference`), a `.obj` file or a `.toml` scene file.
 pub fn load(spec: &str) -> Result<Scene> {
     let scene = match spec {
         "cornell" => cornell::cornell_box(),
+        "cornell-chair" => procedural::cornell_chair()?,
+        "conference" => procedural::conference()?,
+        s if s.starts_with("chairs:") => match s["chairs:".len()..].parse::<u32>() {
+            Ok(k) => procedural::chairs(k)?,
+            Err(_) => bail!("'{s}': use chairs:K with K = 1, 4, 16, …, 4096"),
+        },
         s if s.ends_with(".obj") => obj::load_obj_scene(std::path::Path::new(s))?,
         s if s.ends_with(".toml") => file::load_scene_file(std::path::Path::new(s))?,
-        s => bail!("unknown scene '{s}': use 'cornell', a .obj file or a .toml scene file"),
+        s => bail!("unknown scene '{s}': use cornell, cornell-chair, chairs:K, conference, a .obj file or a .toml scene file"),
     };
     scene.validate()?;
     Ok(scene)
