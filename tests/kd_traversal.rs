@@ -281,3 +281,23 @@ fn chair_parts_are_closed() {
     let open = edges.values().filter(|c| **c != 2).count();
     assert_eq!(open, 0, "{open} edges are not shared by exactly two triangles");
 }
+
+/// Chairs turned by π and π/2: their axis-aligned faces become planar only up to rounding noise
+/// (sin π ≠ 0 in f32), vertices a few ulps apart. The builder must not cut such geometry into
+/// cells thinner than the rounding of t (a traversal would skip them: the conference room's
+/// audience once lost 0.3 % of its primary hits that way).
+#[test]
+fn rotated_chairs_with_rounding_noise() {
+    use kdray::scene::procedural::{chair, Mesh};
+    let mut m = Mesh::default();
+    for i in 0..4 {
+        for j in 0..2 {
+            let yaw = [std::f32::consts::PI, std::f32::consts::FRAC_PI_2][j];
+            m.add(&chair(), Vec3::new(i as f32 * 0.7, 0.0, j as f32 * 0.7), yaw, 1.0);
+        }
+    }
+    let mut s = Scene::new("rotated-chairs", kdray::scene::CameraSpec::framing(Vec3::ZERO, Vec3::ONE));
+    let mat = s.add_material("wood", Default::default());
+    m.into_scene(&mut s, mat, "chair").unwrap();
+    run_scene("rotated-chairs", &s, 50_000);
+}

@@ -11,8 +11,9 @@
 //! clipped into both children. A point on a plane then belongs only to straddling triangles,
 //! and a ray meeting a plane exactly at an end of its interval (starting on a flat wall, lying
 //! in the plane, ending on it, passing through a cell corner) finds its hit in whichever child
-//! it visits. Cells are never a rounding error thin, unless the geometry itself is (vertices a
-//! few ulps apart), so no traversal needs zero-length cells and each returns the oracle's hits.
+//! it visits. Planes never go into gaps narrower than about 64 ulps of the scene's coordinates
+//! (`MIN_GAP`), so no cell is a rounding error thin: no traversal needs zero-length cells and
+//! each returns the oracle's hits.
 use super::clip::{clipped_bounds, tri_bounds, Bounds};
 use kdray_shared::aabb::Aabb;
 use kdray_shared::kdtree::{KdNode, KdTree, MAX_DEPTH};
@@ -134,7 +135,15 @@ struct Ctx<'a> {
     tris: &'a [Triangle],
     opt: &'a BuildOptions,
     depth_limit: u32,
+    /// Smallest gap between event positions a plane may go into (see `MIN_GAP`).
+    min_gap: f32,
 }
+
+/// Planes go only into gaps between event positions of at least this fraction of the scene's
+/// largest coordinate (about 64 ulps there). Geometry closer together than that — a face that
+/// is axis-aligned up to rounding noise — is never cut apart, so no cell is thinner than the
+/// rounding of the ray parameters t at its planes, which would make a traversal skip it.
+const MIN_GAP: f32 = 1.0 / 262_144.0;
 
 impl Ctx<'_> {
     fn sah(&self, cell: &Bounds, area_cell: f64, axis: usize, pos: f32, nl: usize, nr: usize) -> f64 {
@@ -178,7 +187,7 @@ impl Ctx<'_> {
             if let Some(first) = ev.first() {
                 // Empty space below the geometry: keep the cut close to it.
                 let pos = lo + (first.pos - lo) * (1.0 - EMPTY_MARGIN);
-                if pos < first.pos {
+                if pos < first.pos && first.pos - lo >= self.min_gap {
                     consider(pos, 0, n, &mut best);
                 }
             }
@@ -199,13 +208,14 @@ impl Ctx<'_> {
                 }
                 nr -= pp + pe;
                 nl += ps + pp;
+                let upper = if i < ev.len() { ev[i].pos } else { hi };
                 let pos = if i < ev.len() {
                     p + (ev[i].pos - p) * 0.5
                 } else {
                     // Empty space above the geometry.
                     p + (hi - p) * EMPTY_MARGIN
                 };
-                if pos > p && (i == ev.len() || pos < ev[i].pos) {
+                if pos > p && pos < upper && upper - p >= self.min_gap {
                     consider(pos, nl, nr, &mut best);
                 }
             }
@@ -351,7 +361,8 @@ pub fn build(tris: &[Triangle], opt: &BuildOptions) -> KdTreeData {
     for e in events.iter_mut() {
         sort_events(e);
     }
-    let ctx = Ctx { tris, opt, depth_limit };
+    let magnitude = scene.0.iter().chain(&scene.1).fold(0.0f32, |m, x| m.max(x.abs()));
+    let ctx = Ctx { tris, opt, depth_limit, min_gap: magnitude * MIN_GAP };
     let root = ctx.build(Work { tris: (0..n as u32).collect(), bounds, events, cell: scene, depth: 0 });
 
     let mut nodes = vec![KdNode::default()];
