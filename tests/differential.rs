@@ -108,9 +108,9 @@ fn cornell_render_matches_pixel_for_pixel() {
     let scene = scene::load("cornell").unwrap();
     let cam = scene.camera.to_pod(256, 256);
     let pb = indicatif::ProgressBar::hidden();
-    let c = CpuTracer::new(&scene, None).render(Accel::Brute, &cam, 7, &pb).unwrap();
+    let c = CpuTracer::new(&scene, None).render(Accel::Brute, &cam, 7, 4, &pb).unwrap();
     let gt = GpuTracer::new(g, &scene, None).unwrap();
-    let r = gt.render(Accel::Brute, &cam, 7, &pb).unwrap();
+    let r = gt.render(Accel::Brute, &cam, 7, 4, &pb).unwrap();
     let cmp = compare(&c, &r, 1.0);
     println!("render GPU vs CPU: {cmp}");
     assert!(cmp.id_mismatches as f64 <= 1e-5 * cmp.pixels as f64);
@@ -133,9 +133,36 @@ fn gpu_camera_rays_match_cpu() {
     // Rendering uses GPU-generated camera rays; their hits equal CPU camera rays' hits.
     let scene = scene::load("cornell").unwrap();
     let cam = scene.camera.to_pod(97, 61);
-    let r = GpuTracer::new(g, &scene, None).unwrap().render(Accel::Brute, &cam, 1, &indicatif::ProgressBar::hidden()).unwrap();
+    let r = GpuTracer::new(g, &scene, None).unwrap().render(Accel::Brute, &cam, 1, 4, &indicatif::ProgressBar::hidden()).unwrap();
     let rays: Vec<Ray> = (0..97 * 61).map(|i| camera::primary_ray(&cam, i)).collect();
     let ch = CpuTracer::new(&scene, None).closest_hits(Accel::Brute, &rays).unwrap();
     let (frac, max_rel) = diff(&ch, &r.hits);
     assert!(frac <= 1e-3 && max_rel <= 1e-5, "{frac} {max_rel}");
+}
+
+/// Mirror reflections: the same image on both devices, and the mirrors show something else
+/// than their diffuse colour would (the reflected room).
+#[test]
+fn mirror_reflections_match_and_reflect() {
+    let Some(g) = common::gpu() else { return };
+    let scene = scene::load("cornell-mirror").unwrap();
+    assert!(scene.has_mirror());
+    let cam = scene.camera.to_pod(128, 128);
+    let pb = indicatif::ProgressBar::hidden();
+    let gt = GpuTracer::new(g, &scene, None).unwrap();
+    let c = CpuTracer::new(&scene, None).render(Accel::Brute, &cam, 3, 4, &pb).unwrap();
+    let r = gt.render(Accel::Brute, &cam, 3, 4, &pb).unwrap();
+    let cmp = compare(&c, &r, 1.0);
+    println!("mirror render GPU vs CPU: {cmp}");
+    assert!(cmp.id_mismatches == 0 && cmp.max_colour_diff <= 1, "{cmp}");
+    assert!(cmp.colour_mismatches as f64 <= 1e-3 * cmp.pixels as f64, "{cmp}");
+    // Without bounces the mirrors are shaded as diffuse grey; with them they reflect.
+    let flat = CpuTracer::new(&scene, None).render(Accel::Brute, &cam, 3, 0, &pb).unwrap();
+    let changed = c.radiance.iter().zip(&flat.radiance).filter(|(a, b)| a != b).count();
+    assert!(changed > 2000, "only {changed} pixels changed with reflections");
+    // A scene without mirrors traces no reflection: bounces change nothing.
+    let plain = scene::load("cornell").unwrap();
+    let a = CpuTracer::new(&plain, None).render(Accel::Brute, &cam, 3, 0, &pb).unwrap();
+    let b = CpuTracer::new(&plain, None).render(Accel::Brute, &cam, 3, 4, &pb).unwrap();
+    assert_eq!(a.radiance, b.radiance);
 }

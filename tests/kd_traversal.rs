@@ -163,7 +163,7 @@ fn cornell_box_hard_cases_and_random_rays() {
 
 #[test]
 fn flat_cells_and_coplanar_grids() {
-    run_scene("grid", &grid_scene(), 200_000);
+    run_scene("grid", &grid_scene(), 1_000_000);
 }
 
 /// Embree's watertightness test through every traversal: a closed sphere translated far from
@@ -195,8 +195,24 @@ fn closed_sphere_far_from_origin_every_traversal() {
             assert_eq!(misses, 0, "GPU {} any-hit: {misses} of {} rays leaked", accel.name(), rays.len());
         }
     }
-    // And the hard cases on the same sphere, checked against the oracle.
-    let (rays, hard) = hard_rays(&scene, &tree, 20_000, 3);
+    // And the hard cases on the same sphere, checked against the oracle, with rays grazing
+    // shared edges: from outside, aimed exactly at every vertex and edge midpoint, and
+    // tangentially along edges.
+    let (base, base_hard) = hard_rays(&scene, &tree, 20_000, 3);
+    let mut rays = base[..base_hard].to_vec();
+    for tri in f.iter().take(2000) {
+        for k in 0..3 {
+            let a = Vec3::from(v[tri[k] as usize]);
+            let b = Vec3::from(v[tri[(k + 1) % 3] as usize]);
+            for target in [a, (a + b) * 0.5] {
+                let from = center + (target - center) * 3.0 + Vec3::new(0.0, 700.0, 0.0);
+                rays.push(Ray::new(from.to_array(), (target - from).to_array(), 0.0, f32::INFINITY));
+            }
+            rays.push(Ray::new((a - (b - a)).to_array(), (b - a).to_array(), 0.0, f32::INFINITY));
+        }
+    }
+    let hard = rays.len();
+    rays.extend_from_slice(&base[base_hard..]);
     check("sphere", &scene, &tree, &rays, hard);
 }
 
@@ -241,7 +257,7 @@ fn traversal_bench_rows_carry_speed_and_error() {
 
 #[test]
 fn cornell_box_with_a_chair() {
-    run_scene("cornell-chair", &scene::load("cornell-chair").unwrap(), 200_000);
+    run_scene("cornell-chair", &scene::load("cornell-chair").unwrap(), 1_000_000);
 }
 
 #[test]

@@ -23,6 +23,42 @@ pub enum DeviceArg {
     Cpu,
 }
 
+/// kd-tree build options (SAH constants and limits).
+#[derive(clap::Args, Clone, Debug)]
+pub struct BuildArgs {
+    /// SAH cost of a traversal step.
+    #[arg(long, default_value_t = 15.0)]
+    pub kt: f32,
+    /// SAH cost of a triangle test.
+    #[arg(long, default_value_t = 20.0)]
+    pub ki: f32,
+    /// SAH cost factor of a split that cuts off empty space.
+    #[arg(long, default_value_t = 0.8)]
+    pub empty_bonus: f32,
+    /// Maximum tree depth (default 8 + 1.3·log2 N).
+    #[arg(long)]
+    pub max_depth: Option<u32>,
+    /// Nodes with at most this many triangles become leaves.
+    #[arg(long, default_value_t = 1)]
+    pub leaf_size: usize,
+}
+
+impl BuildArgs {
+    pub fn options(&self) -> Result<BuildOptions> {
+        if !(self.kt > 0.0 && self.ki > 0.0 && self.empty_bonus > 0.0 && self.empty_bonus <= 1.0) {
+            bail!("--kt and --ki must be positive and --empty-bonus in (0, 1]");
+        }
+        Ok(BuildOptions {
+            k_t: self.kt,
+            k_i: self.ki,
+            empty_bonus: self.empty_bonus,
+            max_depth: self.max_depth,
+            leaf_size: self.leaf_size,
+            ..Default::default()
+        })
+    }
+}
+
 #[derive(Subcommand)]
 pub enum Command {
     /// Render a scene to PNG: primary rays, one shadow ray per pixel, Lambert shading.
@@ -50,6 +86,11 @@ pub enum Command {
         /// How hits are found: brute (oracle), stack, restart, pushdown, shortstack[:N].
         #[arg(long, default_value = "shortstack")]
         traversal: String,
+        /// Mirror reflections followed per pixel (only scenes with mirrors trace them).
+        #[arg(long, default_value_t = 4)]
+        bounces: u32,
+        #[command(flatten)]
+        build: BuildArgs,
     },
     /// List the GPU adapters wgpu sees.
     Adapters,
@@ -69,6 +110,8 @@ pub enum Command {
         reps: usize,
         #[arg(long, default_value = "bench-out")]
         out: PathBuf,
+        #[command(flatten)]
+        build: BuildArgs,
     },
 }
 
@@ -95,7 +138,8 @@ pub fn run(cli: Cli) -> Result<()> {
             }
             Ok(())
         }
-        Command::Bench { suite, scene: scenes, device, size, reps, out } => {
+        Command::Bench { suite, scene: scenes, device, size, reps, out, build } => {
+            let opts = build.options()?;
             if suite != "traversals" {
                 bail!("unknown bench suite '{suite}' (known: traversals)");
             }
@@ -112,7 +156,7 @@ pub fn run(cli: Cli) -> Result<()> {
             for spec in &scenes {
                 let scene = scene::load(spec)?;
                 println!("scene {}: {} triangles", scene.name, scene.triangles.len());
-                let tree = build_tree(&scene);
+                let tree = build_tree(&scene, &opts);
                 let pb = progress(&scene.name);
                 rows.extend(crate::bench::traversals(&scene, &tree, size, gpu.as_ref(), reps, &pb)?);
                 pb.finish_and_clear();
@@ -123,8 +167,12 @@ pub fn run(cli: Cli) -> Result<()> {
             println!("wrote {}.csv and .md", out.join(&name).display());
             Ok(())
         }
-        Command::Render { scene, device, size, exposure, seed, out, compare: cmp, traversal } => {
+        Command::Render { scene, device, size, exposure, seed, out, compare: cmp, traversal, bounces, build } => {
+            let opts = build.options()?;
             let accel = Accel::parse(&traversal)?;
+            if bounces > 64 {
+                bail!("--bounces must be at most 64, got {bounces}");
+            }
             if size == 0 || size > 16384 {
                 bail!("--size must be between 1 and 16384, got {size}");
             }
@@ -142,7 +190,7 @@ pub fn run(cli: Cli) -> Result<()> {
             );
             let tree = match accel {
                 Accel::Brute => None,
-                Accel::Kd(_) => Some(build_tree(&scene)),
+                Accel::Kd(_) => Some(build_tree(&scene, &opts)),
             };
             let tree = tree.as_ref();
             let cam = scene.camera.to_pod(size, size);
@@ -170,13 +218,13 @@ pub fn run(cli: Cli) -> Result<()> {
                 println!("device: {}, traversal {}", t.device_name(), accel.name());
                 let pb = progress("render");
                 let start = Instant::now();
-                let r = t.render(accel, &cam, seed, &pb)?;
+                let r = t.render(accel, &cam, seed, bounces, &pb)?;
                 pb.finish_and_clear();
                 let secs = start.elapsed().as_secs_f64();
                 println!(
-                    "rendered {size}x{size} in {:.3} s ({:.2} M rays/s, primary + shadow)",
+                    "rendered {size}x{size} in {:.3} s ({:.2} M pixels/s, all passes and transfers)",
                     secs,
-                    2.0 * (size * size) as f64 / secs / 1e6
+                    (size * size) as f64 / secs / 1e6
                 );
                 Ok(r)
             };
@@ -199,9 +247,9 @@ pub fn run(cli: Cli) -> Result<()> {
     }
 }
 
-/// Builds the kd-tree with default options and prints what it cost.
-pub fn build_tree(scene: &scene::Scene) -> KdTreeData {
-    let t = kdtree::build(&scene.triangles, &BuildOptions::default());
+/// Builds the kd-tree and prints what it cost.
+pub fn build_tree(scene: &scene::Scene, opts: &BuildOptions) -> KdTreeData {
+    let t = kdtree::build(&scene.triangles, opts);
     let s = &t.stats;
     println!(
         "kd-tree: {} nodes, {} leaves ({} empty), {:.2} triangles per leaf, depth {} (limit {}), SAH cost {:.1}, {:.2} MiB, built in {:.3} s",

@@ -5,7 +5,7 @@ use crate::trace::{Accel, RenderOutput, Tracer};
 use anyhow::{anyhow, Result};
 use indicatif::ProgressBar;
 use kdray_shared::kdtree::{self, Algorithm, Counters, NoStats, Stats};
-use kdray_shared::{brute, camera, shade, Camera, Hit, Light, Material, Ray, Triangle};
+use kdray_shared::{brute, camera, shade, Camera, Hit, Light, Material, PathState, Ray, Triangle};
 use rayon::prelude::*;
 
 pub struct CpuTracer {
@@ -13,6 +13,7 @@ pub struct CpuTracer {
     materials: Vec<Material>,
     lights: Vec<Light>,
     tree: Option<KdTreeData>,
+    has_mirror: bool,
 }
 
 impl CpuTracer {
@@ -23,6 +24,7 @@ impl CpuTracer {
             materials: scene.materials.clone(),
             lights: scene.lights(),
             tree: tree.cloned(),
+            has_mirror: scene.has_mirror(),
         }
     }
 
@@ -78,10 +80,11 @@ impl Tracer for CpuTracer {
         rays.par_iter().map(|r| self.any(accel, r, &mut NoStats)).collect()
     }
 
-    fn render(&self, accel: Accel, cam: &Camera, seed: u32, progress: &ProgressBar) -> Result<RenderOutput> {
+    fn render(&self, accel: Accel, cam: &Camera, seed: u32, bounces: u32, progress: &ProgressBar) -> Result<RenderOutput> {
         if let Accel::Kd(_) = accel {
             self.tree()?;
         }
+        let max_bounces = if self.has_mirror { bounces } else { 0 };
         let (w, h) = (cam.width, cam.height);
         let n = (w * h) as usize;
         let mut hits = vec![Hit::NONE; n];
@@ -90,21 +93,35 @@ impl Tracer for CpuTracer {
         progress.set_length(n as u64);
         hits.par_chunks_mut(chunk).zip(radiance.par_chunks_mut(chunk)).enumerate().try_for_each(
             |(c, (hs, rs))| -> Result<()> {
-                for (k, (hit, rad)) in hs.iter_mut().zip(rs.iter_mut()).enumerate() {
+                for (k, (primary, rad)) in hs.iter_mut().zip(rs.iter_mut()).enumerate() {
                     let pixel = (c * chunk + k) as u32;
-                    let ray = camera::primary_ray(cam, pixel);
-                    *hit = self.closest(accel, &ray, &mut NoStats)?;
-                    let (shadow, terms) = shade::light_sample(
-                        seed,
-                        pixel,
-                        &ray,
-                        hit,
-                        &self.tris,
-                        &self.materials,
-                        &self.lights,
-                        self.lights.len() as u32,
-                    );
-                    *rad = shade::resolve(&terms, self.any(accel, &shadow, &mut NoStats)?);
+                    let mut ray = camera::primary_ray(cam, pixel);
+                    let mut path = PathState::START;
+                    for bounce in 0..=max_bounces {
+                        let hit = self.closest(accel, &ray, &mut NoStats)?;
+                        if bounce == 0 {
+                            *primary = hit;
+                        }
+                        let (shadow, terms) = shade::path_step(
+                            seed,
+                            pixel,
+                            bounce,
+                            max_bounces,
+                            &mut ray,
+                            &hit,
+                            &mut path,
+                            &self.tris,
+                            &self.materials,
+                            &self.lights,
+                            self.lights.len() as u32,
+                        );
+                        let occluded = !self.lights.is_empty() && self.any(accel, &shadow, &mut NoStats)?;
+                        shade::accumulate(&mut path, &terms, occluded);
+                        if path.active == 0 {
+                            break;
+                        }
+                    }
+                    *rad = [path.radiance[0], path.radiance[1], path.radiance[2], 1.0];
                 }
                 progress.inc(hs.len() as u64);
                 Ok(())

@@ -68,7 +68,8 @@ pub trait Tracer {
     fn device_name(&self) -> String;
     fn closest_hits(&self, accel: Accel, rays: &[Ray]) -> Result<Vec<Hit>>;
     fn any_hits(&self, accel: Accel, rays: &[Ray]) -> Result<Vec<bool>>;
-    /// Primary rays through pixel centres, one shadow ray per pixel toward a sampled light
-    /// point (random stream `seed`), Lambertian shading; both ray types through `accel`.
-    fn render(&self, accel: Accel, camera: &Camera, seed: u32, progress: &ProgressBar) -> Result<RenderOutput>;
+    /// Primary rays through pixel centres, reflected at mirrors up to `bounces` times, then one
+    /// shadow ray per pixel toward a sampled light point (random stream `seed`), Lambertian
+    /// shading; every ray type through `accel`. `RenderOutput::hits` are the primary hits.
+    fn render(&self, accel: Accel, camera: &Camera, seed: u32, bounces: u32, progress: &ProgressBar) -> Result<RenderOutput>;
 }

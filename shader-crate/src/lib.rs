@@ -11,7 +11,7 @@ use kdray_shared::kdtree::{
     traverse, AnyHit, Closest, FullStack, KdNode, KdTree, NoStack, NoStats, ShortStack,
 };
 use kdray_shared::{
-    brute, camera, shade, FrameParams, Hit, Light, Material, Ray, ShadeTerms, Triangle,
+    brute, camera, shade, FrameParams, Hit, Light, Material, PathState, Ray, ShadeTerms, Triangle,
 };
 use kdray_shared::rng::Rng;
 use spirv_std::glam::UVec3;
@@ -30,10 +30,12 @@ pub fn camera_rays(
     #[spirv(num_workgroups)] groups: UVec3,
     #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &FrameParams,
     #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &mut [Ray],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] paths: &mut [PathState],
 ) {
     let i = item(id, groups);
     if i < params.count {
         rays[i as usize] = camera::primary_ray(&params.camera, params.first + i);
+        paths[i as usize] = PathState::START;
     }
 }
 
@@ -118,50 +120,64 @@ trace_kernels!(closest_shortstack3, any_shortstack3, |t, r, q| traverse::<_, _, 
 trace_kernels!(closest_shortstack4, any_shortstack4, |t, r, q| traverse::<_, _, _, true>(&t, r, &mut q, &mut ShortStack::<4>::new(), &mut NoStats));
 trace_kernels!(closest_shortstack8, any_shortstack8, |t, r, q| traverse::<_, _, _, true>(&t, r, &mut q, &mut ShortStack::<8>::new(), &mut NoStats));
 
+/// One bounce of every path: reflect at mirrors (updating `rays` in place) or shade.
 #[spirv(compute(threads(64)))]
-pub fn light_sample(
+pub fn path_step(
     #[spirv(global_invocation_id)] id: UVec3,
     #[spirv(num_workgroups)] groups: UVec3,
     #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &FrameParams,
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[Ray],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &mut [Ray],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] tris: &[Triangle],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] hits: &[Hit],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] materials: &[Material],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] lights: &[Light],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] shadow_rays: &mut [Ray],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] terms: &mut [ShadeTerms],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] paths: &mut [PathState],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] shadow_rays: &mut [Ray],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] terms: &mut [ShadeTerms],
 ) {
     let i = item(id, groups);
     if i < params.count {
         let k = i as usize;
-        let (ray, t) = shade::light_sample(
+        let mut ray = rays[k];
+        let mut path = paths[k];
+        let (shadow, t) = shade::path_step(
             params.seed,
             params.first + i,
-            &rays[k],
+            params.bounce,
+            params.max_bounces,
+            &mut ray,
             &hits[k],
+            &mut path,
             tris,
             materials,
             lights,
             params.light_count,
         );
-        shadow_rays[k] = ray;
+        rays[k] = ray;
+        paths[k] = path;
+        shadow_rays[k] = shadow;
         terms[k] = t;
     }
 }
 
+/// Adds each path's shaded terms; writes the pixel's radiance so far.
 #[spirv(compute(threads(64)))]
-pub fn resolve(
+pub fn accumulate(
     #[spirv(global_invocation_id)] id: UVec3,
     #[spirv(num_workgroups)] groups: UVec3,
     #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &FrameParams,
     #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] terms: &[ShadeTerms],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] occluded: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] radiance: &mut [[f32; 4]],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] paths: &mut [PathState],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] radiance: &mut [[f32; 4]],
 ) {
     let i = item(id, groups);
     if i < params.count {
         let k = i as usize;
-        radiance[k] = shade::resolve(&terms[k], occluded[k] != 0);
+        let mut path = paths[k];
+        shade::accumulate(&mut path, &terms[k], occluded[k] != 0);
+        paths[k] = path;
+        radiance[k] = [path.radiance[0], path.radiance[1], path.radiance[2], 1.0];
     }
 }
 

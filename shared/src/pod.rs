@@ -100,9 +100,11 @@ pub struct FrameParams {
     pub light_count: u32,
     /// Scene box (the kd-tree's root cell).
     pub bounds_min: [f32; 3],
-    pub _pad0: u32,
+    /// Which bounce of the paths this dispatch shades (0 = primary hits).
+    pub bounce: u32,
     pub bounds_max: [f32; 3],
-    pub _pad1: u32,
+    /// Mirror reflections followed before a path is shaded as diffuse.
+    pub max_bounces: u32,
     pub camera: Camera,
 }
 
@@ -115,4 +117,19 @@ pub struct ShadeTerms {
     pub _pad0: u32,
     pub direct: [f32; 3],
     pub _pad1: u32,
+}
+
+/// A pixel's path through mirrors: what its next hit is worth (`throughput`), the radiance
+/// gathered so far, and whether it still continues.
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct PathState {
+    pub throughput: [f32; 3],
+    pub active: u32,
+    pub radiance: [f32; 3],
+    pub _pad: u32,
+}
+
+impl PathState {
+    pub const START: PathState = PathState { throughput: [1.0; 3], active: 1, radiance: [0.0; 3], _pad: 0 };
 }

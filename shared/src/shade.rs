@@ -1,10 +1,11 @@
-//! Direct lighting with one shadow ray per pixel, Lambertian surfaces.
+//! Direct lighting with one shadow ray per pixel, Lambertian surfaces and perfect mirrors.
 //!
-//! `light_sample` turns a primary hit into a shadow ray toward one sampled light point and the
-//! radiance that arrives if that ray is unoccluded; `resolve` combines it with the any-hit
-//! result. The split lets the occlusion query run as its own kernel.
+//! A pixel's path follows mirror reflections (up to `max_bounces`) until it meets a diffuse
+//! surface, where `light_sample` turns the hit into a shadow ray toward one sampled light point
+//! and the radiance that arrives if that ray is unoccluded; `accumulate` adds it once the
+//! any-hit result is known. The split lets each query run as its own kernel.
 use crate::math::{add3, cross3, dot3, length3, mul3, normalize3, scale3, sub3};
-use crate::pod::{Hit, Light, Material, ShadeTerms, Triangle, LIGHT_POINT};
+use crate::pod::{Hit, Light, Material, PathState, ShadeTerms, Triangle, LIGHT_POINT, MAT_MIRROR};
 use crate::ray::Ray;
 use crate::rng::Rng;
 
@@ -88,9 +89,60 @@ pub fn light_sample(
     (Ray::new(origin, to_light, 0.0, SHADOW_END), terms)
 }
 
-/// Linear radiance of the pixel: emission plus direct light unless the shadow ray was blocked.
+/// One step of a pixel's path at its `bounce`-th hit: a mirror (before the last bounce)
+/// reflects `ray` in place and scales the throughput by its colour; anything else is shaded
+/// (emission + one shadow ray) and ends the path. Returns the shadow ray (`NO_RAY` if none) and
+/// the terms to `accumulate`, already weighted by the path's throughput.
 #[inline(always)]
-pub fn resolve(terms: &ShadeTerms, occluded: bool) -> [f32; 4] {
+#[allow(clippy::too_many_arguments)]
+pub fn path_step(
+    seed: u32,
+    pixel: u32,
+    bounce: u32,
+    max_bounces: u32,
+    ray: &mut Ray,
+    hit: &Hit,
+    path: &mut PathState,
+    tris: &[Triangle],
+    materials: &[Material],
+    lights: &[Light],
+    light_count: u32,
+) -> (Ray, ShadeTerms) {
+    let mut terms = ShadeTerms::default();
+    if path.active == 0 {
+        return (NO_RAY, terms);
+    }
+    if !hit.is_hit() {
+        path.active = 0;
+        return (NO_RAY, terms);
+    }
+    let tri = &tris[hit.prim as usize];
+    let mat = &materials[tri.material as usize];
+    if mat.flags & MAT_MIRROR != 0 && bounce < max_bounces {
+        terms.base = mul3(path.throughput, mat.emission);
+        let b0 = 1.0 - hit.b1 - hit.b2;
+        let p = add3(add3(scale3(tri.v0, b0), scale3(tri.v1, hit.b1)), scale3(tri.v2, hit.b2));
+        let mut n = normalize3(cross3(sub3(tri.v1, tri.v0), sub3(tri.v2, tri.v0)));
+        if dot3(n, ray.dir) > 0.0 {
+            n = scale3(n, -1.0);
+        }
+        let d = sub3(ray.dir, scale3(n, 2.0 * dot3(ray.dir, n)));
+        *ray = Ray::new(add3(p, scale3(n, offset_scale(p))), d, 0.0, f32::INFINITY);
+        path.throughput = mul3(path.throughput, mat.diffuse);
+        return (NO_RAY, terms);
+    }
+    // Each bounce draws from its own random stream.
+    let stream = seed ^ bounce.wrapping_mul(0x9E37_79B9);
+    let (shadow, t) = light_sample(stream, pixel, ray, hit, tris, materials, lights, light_count);
+    terms.base = mul3(path.throughput, t.base);
+    terms.direct = mul3(path.throughput, t.direct);
+    path.active = 0;
+    (shadow, terms)
+}
+
+/// Adds a step's radiance to its path: `base`, plus `direct` unless the shadow ray was blocked.
+#[inline(always)]
+pub fn accumulate(path: &mut PathState, terms: &ShadeTerms, occluded: bool) {
     let c = if occluded { terms.base } else { add3(terms.base, terms.direct) };
-    [c[0], c[1], c[2], 1.0]
+    path.radiance = add3(path.radiance, c);
 }

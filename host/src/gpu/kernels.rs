@@ -10,8 +10,8 @@ pub enum Kernel {
     CameraRays,
     Closest(Accel),
     Any(Accel),
-    LightSample,
-    Resolve,
+    PathStep,
+    Accumulate,
     RngFill,
 }
 
@@ -20,7 +20,7 @@ pub const GPU_SHORT_STACKS: [u32; 5] = [1, 2, 3, 4, 8];
 
 /// Every entry point of the module.
 pub const ENTRY_POINTS: &[&str] = &[
-    "camera_rays", "light_sample", "resolve", "rng_fill",
+    "camera_rays", "path_step", "accumulate", "rng_fill",
     "closest_brute", "any_brute", "closest_stack", "any_stack", "closest_restart", "any_restart",
     "closest_pushdown", "any_pushdown", "closest_shortstack1", "any_shortstack1",
     "closest_shortstack2", "any_shortstack2", "closest_shortstack3", "any_shortstack3",
@@ -48,8 +48,8 @@ impl Kernel {
     pub fn entry_point(self) -> Result<&'static str> {
         let name = match self {
             Kernel::CameraRays => "camera_rays",
-            Kernel::LightSample => "light_sample",
-            Kernel::Resolve => "resolve",
+            Kernel::PathStep => "path_step",
+            Kernel::Accumulate => "accumulate",
             Kernel::RngFill => "rng_fill",
             Kernel::Closest(a) | Kernel::Any(a) => {
                 let prefix = if matches!(self, Kernel::Closest(_)) { "closest_" } else { "any_" };
@@ -63,10 +63,10 @@ impl Kernel {
     /// `true` = read-only storage, `false` = read-write, for bindings 1.. of a kernel.
     pub fn bindings(self) -> &'static [bool] {
         match self {
-            Kernel::CameraRays => &[false],
+            Kernel::CameraRays => &[false, false],
             Kernel::Closest(_) | Kernel::Any(_) => &[true, true, true, true, false],
-            Kernel::LightSample => &[true, true, true, true, true, false, false],
-            Kernel::Resolve => &[true, true, false],
+            Kernel::PathStep => &[false, true, true, true, true, false, false, false],
+            Kernel::Accumulate => &[true, true, false, false],
             Kernel::RngFill => &[false],
         }
     }

@@ -8,7 +8,7 @@ use crate::scene::Scene;
 use crate::trace::{Accel, RenderOutput, Tracer};
 use anyhow::Result;
 use indicatif::ProgressBar;
-use kdray_shared::{Camera, FrameParams, Hit, Ray, ShadeTerms};
+use kdray_shared::{Camera, FrameParams, Hit, PathState, Ray, ShadeTerms};
 
 /// Upper bound on ray-triangle tests of one brute-force submission.
 const MAX_TESTS_PER_SUBMIT: u64 = 1 << 30;
@@ -24,6 +24,7 @@ pub struct GpuTracer<'g> {
     prims: wgpu::Buffer,
     bounds: kdray_shared::aabb::Aabb,
     has_tree: bool,
+    has_mirror: bool,
     tri_count: u64,
     light_count: u32,
 }
@@ -39,6 +40,7 @@ impl<'g> GpuTracer<'g> {
             prims: gpu.upload("kd-tree primitive index", tree.map(|t| &t.prims[..]).unwrap_or(&[]))?,
             bounds: tree.map(|t| t.bounds).unwrap_or(kdray_shared::aabb::Aabb { min: lo.to_array(), max: hi.to_array() }),
             has_tree: tree.is_some(),
+            has_mirror: scene.has_mirror(),
             tris: gpu.upload("triangle", &scene.triangles)?,
             materials: gpu.upload("material", &scene.materials)?,
             lights: gpu.upload("light", &lights)?,
@@ -108,36 +110,49 @@ impl Tracer for GpuTracer<'_> {
         Ok(self.query::<u32>(accel, Kernel::Any(accel), rays)?.into_iter().map(|o| o != 0).collect())
     }
 
-    fn render(&self, accel: Accel, cam: &Camera, seed: u32, progress: &ProgressBar) -> Result<RenderOutput> {
+    fn render(&self, accel: Accel, cam: &Camera, seed: u32, bounces: u32, progress: &ProgressBar) -> Result<RenderOutput> {
         self.check(accel)?;
         let g = self.gpu;
         let n = (cam.width * cam.height) as usize;
         let b = self.batch_size(accel, n);
-        let rays = g.storage::<Ray>("primary ray", b)?;
+        // Only what the scene needs: no reflection passes without mirrors, no shadow rays
+        // without lights (their occlusion flags then stay 0).
+        let max_bounces = if self.has_mirror { bounces } else { 0 };
+        let rays = g.storage::<Ray>("ray", b)?;
+        let paths = g.storage::<PathState>("path", b)?;
         let hits = g.storage::<Hit>("hit", b)?;
+        let primary_hits = g.storage::<Hit>("primary hit", b)?;
         let shadow = g.storage::<Ray>("shadow ray", b)?;
         let terms = g.storage::<ShadeTerms>("shade terms", b)?;
-        let occluded = g.storage::<u32>("occluded", b)?;
+        let occluded = g.upload("occluded", &vec![0u32; b])?;
         let radiance = g.storage::<[f32; 4]>("radiance", b)?;
         let mut out = RenderOutput { width: cam.width, height: cam.height, hits: Vec::with_capacity(n), radiance: Vec::with_capacity(n) };
         progress.set_length(n as u64);
         let mut first = 0;
         while first < n {
             let count = b.min(n - first);
-            let p = FrameParams { seed, camera: *cam, ..self.params(first, count) };
+            let p = FrameParams { seed, camera: *cam, max_bounces, ..self.params(first, count) };
             let mut enc = g.encoder();
-            g.record(&mut enc, Kernel::CameraRays, &p, &[&rays])?;
-            g.record(&mut enc, Kernel::Closest(accel), &p, &[&rays, &self.tris, &self.nodes, &self.prims, &hits])?;
-            g.record(
-                &mut enc,
-                Kernel::LightSample,
-                &p,
-                &[&rays, &self.tris, &hits, &self.materials, &self.lights, &shadow, &terms],
-            )?;
-            g.record(&mut enc, Kernel::Any(accel), &p, &[&shadow, &self.tris, &self.nodes, &self.prims, &occluded])?;
-            g.record(&mut enc, Kernel::Resolve, &p, &[&terms, &occluded, &radiance])?;
+            g.record(&mut enc, Kernel::CameraRays, &p, &[&rays, &paths])?;
+            for bounce in 0..=max_bounces {
+                let p = FrameParams { bounce, ..p };
+                g.record(&mut enc, Kernel::Closest(accel), &p, &[&rays, &self.tris, &self.nodes, &self.prims, &hits])?;
+                if bounce == 0 {
+                    enc.copy_buffer_to_buffer(&hits, 0, &primary_hits, 0, (count * std::mem::size_of::<Hit>()) as u64);
+                }
+                g.record(
+                    &mut enc,
+                    Kernel::PathStep,
+                    &p,
+                    &[&rays, &self.tris, &hits, &self.materials, &self.lights, &paths, &shadow, &terms],
+                )?;
+                if self.light_count > 0 {
+                    g.record(&mut enc, Kernel::Any(accel), &p, &[&shadow, &self.tris, &self.nodes, &self.prims, &occluded])?;
+                }
+                g.record(&mut enc, Kernel::Accumulate, &p, &[&terms, &occluded, &paths, &radiance])?;
+            }
             g.submit_wait(enc)?;
-            out.hits.extend(g.read::<Hit>(&hits, count)?);
+            out.hits.extend(g.read::<Hit>(&primary_hits, count)?);
             out.radiance.extend(g.read::<[f32; 4]>(&radiance, count)?);
             first += count;
             progress.inc(count as u64);

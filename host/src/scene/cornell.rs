@@ -61,3 +61,21 @@ pub fn cornell_box() -> Scene {
     }
     s
 }
+
+/// The Cornell box with a mirror tall block and a mirror back wall (for reflection rays).
+pub fn cornell_mirror() -> Scene {
+    let mut s = cornell_box();
+    s.name = "cornell-mirror".into();
+    let mirror = s.add_material(
+        "mirror",
+        Material { diffuse: [0.9, 0.9, 0.9], flags: kdray_shared::MAT_MIRROR, ..Default::default() },
+    );
+    // Triangles 6..8 are the back wall, the last 10 the tall block.
+    let n = s.triangles.len();
+    for (i, t) in s.triangles.iter_mut().enumerate() {
+        if (6..8).contains(&i) || i >= n - 10 {
+            t.material = mirror;
+        }
+    }
+    s
+}

@@ -132,6 +132,11 @@ impl Scene {
         self.add_triangle([q[0], q[2], q[3]], material, &|| format!("{name}: quad"))
     }
 
+    /// Whether any triangle is a mirror (only then are reflection rays traced).
+    pub fn has_mirror(&self) -> bool {
+        self.triangles.iter().any(|t| self.materials[t.material as usize].flags & kdray_shared::MAT_MIRROR != 0)
+    }
+
     /// Fails on a scene with nothing to trace.
     pub fn validate(&self) -> Result<()> {
         if self.triangles.is_empty() {
@@ -204,6 +209,7 @@ impl Scene {
 pub fn load(spec: &str) -> Result<Scene> {
     let scene = match spec {
         "cornell" => cornell::cornell_box(),
+        "cornell-mirror" => cornell::cornell_mirror(),
         "cornell-chair" => procedural::cornell_chair()?,
         "conference" => procedural::conference()?,
         s if s.starts_with("chairs:") => match s["chairs:".len()..].parse::<u32>() {
@@ -212,7 +218,7 @@ pub fn load(spec: &str) -> Result<Scene> {
         },
         s if s.ends_with(".obj") => obj::load_obj_scene(std::path::Path::new(s))?,
         s if s.ends_with(".toml") => file::load_scene_file(std::path::Path::new(s))?,
-        s => bail!("unknown scene '{s}': use cornell, cornell-chair, chairs:K, conference, a .obj file or a .toml scene file"),
+        s => bail!("unknown scene '{s}': use cornell, cornell-mirror, cornell-chair, chairs:K, conference, a .obj file or a .toml scene file"),
     };
     scene.validate()?;
     Ok(scene)
