@@ -24,6 +24,15 @@ fn offset_scale(p: [f32; 3]) -> f32 {
     (1.0 + m) * (64.0 * f32::EPSILON)
 }
 
+/// The hit point (from barycentrics, not o + t·d) and the geometric normal facing the ray.
+#[inline(always)]
+fn surface_point(tri: &Triangle, hit: &Hit, ray: &Ray) -> ([f32; 3], [f32; 3]) {
+    let b0 = 1.0 - hit.b1 - hit.b2;
+    let p = add3(add3(scale3(tri.v0, b0), scale3(tri.v1, hit.b1)), scale3(tri.v2, hit.b2));
+    let n = normalize3(cross3(sub3(tri.v1, tri.v0), sub3(tri.v2, tri.v0)));
+    (p, if dot3(n, ray.dir) > 0.0 { scale3(n, -1.0) } else { n })
+}
+
 #[inline(always)]
 fn pick_light(lights: &[Light], n: usize, u: f32) -> usize {
     let mut i = 0;
@@ -54,12 +63,7 @@ pub fn light_sample(
     if light_count == 0 {
         return (NO_RAY, terms);
     }
-    let b0 = 1.0 - hit.b1 - hit.b2;
-    let p = add3(add3(scale3(tri.v0, b0), scale3(tri.v1, hit.b1)), scale3(tri.v2, hit.b2));
-    let mut n = normalize3(cross3(sub3(tri.v1, tri.v0), sub3(tri.v2, tri.v0)));
-    if dot3(n, ray.dir) > 0.0 {
-        n = scale3(n, -1.0);
-    }
+    let (p, n) = surface_point(tri, hit, ray);
     let mut rng = Rng::new(seed, pixel);
     let li = pick_light(lights, light_count as usize, rng.next_f32());
     let light = &lights[li];
@@ -120,12 +124,7 @@ pub fn path_step(
     let mat = &materials[tri.material as usize];
     if mat.flags & MAT_MIRROR != 0 && bounce < max_bounces {
         terms.base = mul3(path.throughput, mat.emission);
-        let b0 = 1.0 - hit.b1 - hit.b2;
-        let p = add3(add3(scale3(tri.v0, b0), scale3(tri.v1, hit.b1)), scale3(tri.v2, hit.b2));
-        let mut n = normalize3(cross3(sub3(tri.v1, tri.v0), sub3(tri.v2, tri.v0)));
-        if dot3(n, ray.dir) > 0.0 {
-            n = scale3(n, -1.0);
-        }
+        let (p, n) = surface_point(tri, hit, ray);
         let d = sub3(ray.dir, scale3(n, 2.0 * dot3(ray.dir, n)));
         *ray = Ray::new(add3(p, scale3(n, offset_scale(p))), d, 0.0, f32::INFINITY);
         path.throughput = mul3(path.throughput, mat.diffuse);

@@ -1,8 +1,8 @@
 //! The Cornell box from the Cornell Program of Computer Graphics' published measurements
 //! ("Cornell Box Data": millimetres, camera at (278, 273, −800) looking +z, 35 mm focal length
-//! on a 25 mm × 25 mm film). Reflectances are RGB approximations of the measured spectra as
-//! commonly used (Mitsuba's scene); the light's radiance likewise. The light quad is lowered by
-//! 0.1 mm below the ceiling so the emitter and the ceiling are not coplanar.
+//! on a 25 mm × 25 mm film). Reflectances are the RGB approximations of the measured spectra
+//! that RGB renderers commonly use, the light's radiance (17, 12, 4) likewise. The light quad is
+//! lowered by 0.1 mm below the ceiling so the emitter and the ceiling are not coplanar.
 use super::{CameraSpec, Scene};
 use glam::Vec3;
 use kdray_shared::Material;
