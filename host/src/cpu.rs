@@ -8,40 +8,41 @@ use kdray_shared::kdtree::{self, Algorithm, Counters, NoStats, Stats};
 use kdray_shared::{brute, camera, shade, Camera, Hit, Light, Material, PathState, Ray, Triangle};
 use rayon::prelude::*;
 
-pub struct CpuTracer {
-    tris: Vec<Triangle>,
-    materials: Vec<Material>,
+/// Borrows the scene and the tree: creating one copies nothing but the light list.
+pub struct CpuTracer<'s> {
+    tris: &'s [Triangle],
+    materials: &'s [Material],
     lights: Vec<Light>,
-    tree: Option<KdTreeData>,
+    tree: Option<&'s KdTreeData>,
     has_mirror: bool,
 }
 
-impl CpuTracer {
+impl<'s> CpuTracer<'s> {
     /// `tree` is needed only for the kd traversals.
-    pub fn new(scene: &Scene, tree: Option<&KdTreeData>) -> Self {
+    pub fn new(scene: &'s Scene, tree: Option<&'s KdTreeData>) -> Self {
         CpuTracer {
-            tris: scene.triangles.clone(),
-            materials: scene.materials.clone(),
+            tris: &scene.triangles,
+            materials: &scene.materials,
             lights: scene.lights(),
-            tree: tree.cloned(),
+            tree,
             has_mirror: scene.has_mirror(),
         }
     }
 
-    fn tree(&self) -> Result<kdtree::KdTree<'_>> {
-        self.tree.as_ref().map(|t| t.view(&self.tris)).ok_or_else(|| anyhow!("no kd-tree was built for this scene"))
+    fn tree(&self) -> Result<kdtree::KdTree<'s>> {
+        self.tree.map(|t| t.view(self.tris)).ok_or_else(|| anyhow!("no kd-tree was built for this scene"))
     }
 
     fn closest<S: Stats>(&self, accel: Accel, ray: &Ray, stats: &mut S) -> Result<Hit> {
         Ok(match accel {
-            Accel::Brute => brute::closest_hit(ray, &self.tris),
+            Accel::Brute => brute::closest_hit(ray, self.tris),
             Accel::Kd(alg) => kdtree::closest_hit(alg, &self.tree()?, ray, stats),
         })
     }
 
     fn any<S: Stats>(&self, accel: Accel, ray: &Ray, stats: &mut S) -> Result<bool> {
         Ok(match accel {
-            Accel::Brute => brute::any_hit(ray, &self.tris),
+            Accel::Brute => brute::any_hit(ray, self.tris),
             Accel::Kd(alg) => kdtree::any_hit(alg, &self.tree()?, ray, stats),
         })
     }
@@ -67,7 +68,7 @@ impl CpuTracer {
 /// Rows per parallel work item of the renderer (also the progress granularity).
 const ROWS_PER_TASK: u32 = 4;
 
-impl Tracer for CpuTracer {
+impl Tracer for CpuTracer<'_> {
     fn device_name(&self) -> String {
         format!("CPU ({} threads)", rayon::current_num_threads())
     }
@@ -110,8 +111,8 @@ impl Tracer for CpuTracer {
                             &mut ray,
                             &hit,
                             &mut path,
-                            &self.tris,
-                            &self.materials,
+                            self.tris,
+                            self.materials,
                             &self.lights,
                             self.lights.len() as u32,
                         );
