@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Installs what building and running kdray needs, skipping what is already there:
-# the pinned Rust toolchain (rust-toolchain.toml) with its components, and a Vulkan loader plus
-# Mesa's lavapipe CPU driver when the machine has no Vulkan driver at all.
+# the pinned Rust toolchain (rust-toolchain.toml) with its components, a Vulkan loader plus
+# Mesa's lavapipe CPU driver when the machine has no Vulkan driver at all, and a TrueType font
+# for the benchmark plots (DejaVu) when there is none.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -29,11 +30,19 @@ have_driver() {
   done
   return 1
 }
+packages=()
 if ! have_loader || ! have_driver; then
   echo "setup: no Vulkan driver found: installing the Vulkan loader and Mesa's lavapipe"
+  packages+=(libvulkan1 mesa-vulkan-drivers)
+fi
+if [ -z "${KDRAY_PLOT_FONT:-}" ] && ! ls /usr/share/fonts/truetype/dejavu/DejaVuSans.ttf /usr/share/fonts/TTF/DejaVuSans.ttf /usr/share/fonts/dejavu/DejaVuSans.ttf >/dev/null 2>&1; then
+  echo "setup: no DejaVu font found: installing fonts-dejavu-core (benchmark plots)"
+  packages+=(fonts-dejavu-core)
+fi
+if [ ${#packages[@]} -gt 0 ]; then
   sudo=""
   [ "$(id -u)" -eq 0 ] || sudo="sudo"
   export DEBIAN_FRONTEND=noninteractive
   $sudo apt-get update -qq
-  $sudo apt-get install -y -qq --no-install-recommends libvulkan1 mesa-vulkan-drivers >/dev/null
+  $sudo apt-get install -y -qq --no-install-recommends "${packages[@]}" >/dev/null
 fi

@@ -1,6 +1,6 @@
-//! Every kd-tree traversal (full stack, kd-restart, push-down, short-stack 1..8) against the
-//! brute-force oracle, natively and on the GPU, on the hard cases of kd-tree traversal and on
-//! random rays.
+//! Every kd-tree traversal (full stack, kd-restart, push-down, short-stack 1..8; one ray at a
+//! time and in packets of four) and the decomposed pipeline against the brute-force oracle,
+//! natively and on the GPU, on the hard cases of kd-tree traversal and on random rays.
 mod common;
 
 use glam::Vec3;
@@ -20,6 +20,32 @@ fn cpu_algorithms() -> Vec<Algorithm> {
 /// or vertex, where the GPU's division may round t differently).
 fn agree(a: &Hit, b: &Hit) -> bool {
     a.prim == b.prim || (a.is_hit() && b.is_hit() && (a.t - b.t).abs() <= 1e-6 * a.t.abs())
+}
+
+/// Packet traversals and decomposed pipelines checked natively (bit-identical to the oracle).
+fn cpu_grouped() -> Vec<Accel> {
+    let mut v: Vec<Accel> = [Algorithm::Stack, Algorithm::Restart, Algorithm::PushDown, Algorithm::ShortStack(1), Algorithm::ShortStack(2), Algorithm::ShortStack(3), Algorithm::ShortStack(8)]
+        .into_iter()
+        .map(Accel::Packet)
+        .collect();
+    v.extend([1, 3, 16].map(|capacity| Accel::Decomposed { capacity }));
+    v
+}
+
+/// The same on the GPU (every packet kernel; leaf lists that overflow often and rarely).
+fn gpu_grouped() -> Vec<Accel> {
+    let mut v: Vec<Accel> = kdray::gpu::kernels::GPU_PACKETS.into_iter().map(Accel::Packet).collect();
+    v.extend([2, 16].map(|capacity| Accel::Decomposed { capacity }));
+    v
+}
+
+/// Ray order that groups rays by the signs of their direction (stable within an octant), so
+/// that most groups of four are coherent packets even though their origins are scattered.
+fn octant_order(rays: &[Ray]) -> Vec<usize> {
+    let key = |r: &Ray| r.dir.iter().enumerate().map(|(a, d)| (d.is_sign_negative() as u32) << a).sum::<u32>();
+    let mut order: Vec<usize> = (0..rays.len()).collect();
+    order.sort_by_key(|&i| key(&rays[i]));
+    order
 }
 
 /// GPU kernels that get every random ray; the others get `GPU_SAMPLE` of them (lavapipe in CI
@@ -53,6 +79,24 @@ fn check_on(name: &str, scene: &Scene, tree: &KdTreeData, rays: &[Ray], hard: us
         let bad = (0..rays.len()).filter(|&i| any[i] != oracle_any[i]).count();
         assert_eq!(bad, 0, "{name}: CPU {alg:?} any-hit differs on {bad} rays");
     }
+    // Packets and the decomposed pipeline on the rays grouped by octant.
+    let order = octant_order(rays);
+    let grouped: Vec<Ray> = order.iter().map(|&i| rays[i]).collect();
+    let coherent = cpu.coherent_packets(&grouped).unwrap();
+    println!("{name}: {coherent} of {} packets coherent", grouped.len().div_ceil(4));
+    for accel in cpu_grouped() {
+        let hits = cpu.closest_hits(accel, &grouped).unwrap();
+        let bad: Vec<usize> = (0..rays.len()).filter(|&k| hits[k] != oracle[order[k]]).collect();
+        if let Some(&k) = bad.first() {
+            panic!(
+                "{name}: CPU {} differs from the oracle on {} of {} rays; first: {:?} gives {:?}, oracle {:?}",
+                accel.name(), bad.len(), rays.len(), grouped[k], hits[k], oracle[order[k]]
+            );
+        }
+        let any = cpu.any_hits(accel, &grouped).unwrap();
+        let bad = (0..rays.len()).filter(|&k| any[k] != oracle_any[order[k]]).count();
+        assert_eq!(bad, 0, "{name}: CPU {} any-hit differs on {bad} rays", accel.name());
+    }
     if let Some(g) = common::gpu().filter(|_| on_gpu) {
         let gpu = GpuTracer::new(g, scene, Some(tree)).unwrap();
         for accel in Accel::all().into_iter().skip(1) {
@@ -72,6 +116,25 @@ fn check_on(name: &str, scene: &Scene, tree: &KdTreeData, rays: &[Ray], hard: us
             let bad = (0..n).filter(|&i| any[i] != oracle_any[i]).count();
             assert!(bad as f64 <= 1e-5 * n as f64, "{name}: GPU {} any-hit differs on {bad} of {n} rays", accel.name());
             println!("{name}: GPU {} on {n} rays: {differ} ids differ on random rays", accel.name());
+        }
+        // Packets and decomposed pipelines must give exactly the GPU's single-ray results.
+        let n = (hard + GPU_SAMPLE).min(rays.len());
+        let sample: Vec<usize> = octant_order(&rays[..n]);
+        let grouped: Vec<Ray> = sample.iter().map(|&i| rays[i]).collect();
+        let single = gpu.closest_hits(Accel::Kd(Algorithm::Stack), &grouped).unwrap();
+        let single_any = gpu.any_hits(Accel::Kd(Algorithm::Stack), &grouped).unwrap();
+        for accel in gpu_grouped() {
+            let hits = gpu.closest_hits(accel, &grouped).unwrap();
+            let bad: Vec<usize> = (0..n).filter(|&k| hits[k] != single[k]).collect();
+            if let Some(&k) = bad.first() {
+                panic!(
+                    "{name}: GPU {} differs from the GPU full stack on {} of {n} rays; first: {:?} gives {:?}, stack {:?}",
+                    accel.name(), bad.len(), grouped[k], hits[k], single[k]
+                );
+            }
+            let any = gpu.any_hits(accel, &grouped).unwrap();
+            let bad = (0..n).filter(|&k| any[k] != single_any[k]).count();
+            assert_eq!(bad, 0, "{name}: GPU {} any-hit differs from the full stack on {bad} of {n} rays", accel.name());
         }
     }
     oracle
@@ -156,6 +219,9 @@ fn run_scene(name: &str, scene: &Scene, n_random: usize) {
     assert!(tree.stats.nodes > 1, "{name}: the tree splits");
     let (rays, hard) = hard_rays(scene, &tree, n_random, 11);
     let hits = check(name, scene, &tree, &rays, hard);
+    let grouped: Vec<Ray> = octant_order(&rays[hard..]).into_iter().map(|i| rays[hard + i]).collect();
+    let coherent = CpuTracer::new(scene, Some(&tree)).coherent_packets(&grouped).unwrap();
+    assert!(4 * coherent >= grouped.len() * 9 / 10, "{name}: only {coherent} of the random rays' packets are coherent");
     let hit_frac = hits.iter().filter(|h| h.is_hit()).count() as f64 / hits.len() as f64;
     println!("{name}: {} rays, {:.1} % hit, tree {:?}", rays.len(), 100.0 * hit_frac, tree.stats);
     assert!(hit_frac > 0.05, "{name}: the rays must hit something");
@@ -190,6 +256,13 @@ fn closed_sphere_far_from_origin_every_traversal() {
         let misses = cpu.any_hits(Accel::Kd(alg), &rays).unwrap().iter().filter(|h| !**h).count();
         assert_eq!(misses, 0, "CPU {alg:?} any-hit: {misses} of 10^6 rays leaked");
     }
+    let grouped: Vec<Ray> = octant_order(&rays).into_iter().map(|i| rays[i]).collect();
+    for accel in cpu_grouped() {
+        let misses = cpu.closest_hits(accel, &grouped).unwrap().iter().filter(|h| !h.is_hit()).count();
+        assert_eq!(misses, 0, "CPU {}: {misses} of 10^6 rays leaked", accel.name());
+        let misses = cpu.any_hits(accel, &grouped).unwrap().iter().filter(|h| !**h).count();
+        assert_eq!(misses, 0, "CPU {} any-hit: {misses} of 10^6 rays leaked", accel.name());
+    }
     if let Some(g) = common::gpu() {
         let gpu = GpuTracer::new(g, &scene, Some(&tree)).unwrap();
         for accel in Accel::all().into_iter().skip(1) {
@@ -197,6 +270,13 @@ fn closed_sphere_far_from_origin_every_traversal() {
             let misses = gpu.closest_hits(accel, &rays).unwrap().iter().filter(|h| !h.is_hit()).count();
             assert_eq!(misses, 0, "GPU {}: {misses} of {} rays leaked", accel.name(), rays.len());
             let misses = gpu.any_hits(accel, &rays).unwrap().iter().filter(|h| !**h).count();
+            assert_eq!(misses, 0, "GPU {} any-hit: {misses} of {} rays leaked", accel.name(), rays.len());
+        }
+        for accel in gpu_grouped() {
+            let rays = &grouped[..GPU_SAMPLE];
+            let misses = gpu.closest_hits(accel, rays).unwrap().iter().filter(|h| !h.is_hit()).count();
+            assert_eq!(misses, 0, "GPU {}: {misses} of {} rays leaked", accel.name(), rays.len());
+            let misses = gpu.any_hits(accel, rays).unwrap().iter().filter(|h| !**h).count();
             assert_eq!(misses, 0, "GPU {} any-hit: {misses} of {} rays leaked", accel.name(), rays.len());
         }
     }
@@ -237,32 +317,86 @@ fn stanford_bunny_from_shared_scenes() {
     run_scene("bunny", &scene, 50_000);
 }
 
-/// The traversal benchmark's table: every row has a speed, per-ray counts relative to the full
-/// stack, and an error column that is zero here (the kd traversals are exact).
+/// `bench all` at a small size: every suite writes its CSV and Markdown tables, every timed
+/// row carries a speed and an error column that is zero (every method is exact), and the
+/// dumped rays read back as the batch that was measured.
 #[test]
-fn traversal_bench_rows_carry_speed_and_error() {
-    let scene = scene::load("cornell").unwrap();
-    let tree = build(&scene.triangles, &BuildOptions::default());
-    let pb = indicatif::ProgressBar::hidden();
-    let rows = kdray::bench::traversals(&scene, &tree, 32, common::gpu(), 1, &pb).unwrap();
-    assert_eq!(rows.len(), 2 * (Accel::all().len() - 1));
-    for r in &rows {
-        assert!(r.mrays_wall > 0.0 && r.nodes >= 1.0, "{r:?}");
-        assert_eq!(r.oracle_mismatch, 0.0, "{r:?}");
-        if r.traversal == "stack" {
-            assert_eq!(r.visits_vs_stack, 0.0);
-            assert_eq!(r.restarts, 0.0);
-        } else {
-            assert!(r.visits_vs_stack >= 0.0, "no traversal visits fewer nodes than the full stack: {r:?}");
+fn bench_all_suites_write_rows_with_speed_and_error() {
+    let dir = std::env::temp_dir().join(format!("kdray-bench-{}", std::process::id()));
+    let opts = kdray::bench::Options {
+        gpu: common::gpu(),
+        scenes: Some(vec!["cornell-mirror".into()]),
+        size: 24,
+        reps: 1,
+        build: BuildOptions::default(),
+        out: dir.clone(),
+        dump_rays: Some(dir.join("rays")),
+        max_chairs: 4,
+        progress: indicatif::ProgressBar::hidden(),
+    };
+    let files = kdray::bench::run_suite("all", &opts).unwrap();
+    let dev = if opts.gpu.is_some() { "gpu" } else { "cpu" };
+    for suite in kdray::bench::SUITES {
+        for ext in ["csv", "md"] {
+            let f = dir.join(format!("{suite}-{dev}.{ext}"));
+            assert!(files.contains(&f), "{suite}: {} not written", f.display());
+        }
+        let csv = std::fs::read_to_string(dir.join(format!("{suite}-{dev}.csv"))).unwrap();
+        let mut lines = csv.lines();
+        let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+        assert_eq!(&header[..3], ["date", "machine", "device"], "{suite}");
+        let rows: Vec<&str> = lines.collect();
+        assert!(!rows.is_empty(), "{suite}: no rows");
+        // Timed suites: speed and both error columns; every method is exact on the CPU
+        // reference (ties between GPU and CPU aside: none in this small batch).
+        if let Some(k) = header.iter().position(|h| *h == "reference_mismatch_rate") {
+            let speed = header.iter().position(|h| *h == "mrays_s_wall").unwrap();
+            for r in &rows {
+                let cells = split_csv(r);
+                assert!(cells[speed].parse::<f64>().unwrap() > 0.0, "{suite}: {r}");
+                assert_eq!(cells[k].parse::<f64>().unwrap(), 0.0, "{suite}: {r}");
+                assert_eq!(cells[k - 1].parse::<f64>().unwrap(), 0.0, "{suite}: {r}");
+            }
         }
     }
-    let dir = std::env::temp_dir().join(format!("kdray-bench-{}", std::process::id()));
-    kdray::bench::write_tables(&dir, "t", "test device", &rows).unwrap();
-    let csv = std::fs::read_to_string(dir.join("t.csv")).unwrap();
-    assert_eq!(csv.lines().count(), rows.len() + 1);
-    assert!(csv.lines().next().unwrap().contains("oracle_mismatch_rate"));
-    let md = std::fs::read_to_string(dir.join("t.md")).unwrap();
-    assert!(md.contains("test device") && md.contains("| cornell | 32 | primary |"));
+    let horn = std::fs::read_to_string(dir.join(format!("horn-{dev}.md"))).unwrap();
+    assert!(horn.contains("| + short-stack (3) (`shortstack:3+packets`) |"), "{horn}");
+    let breakdown = std::fs::read_to_string(dir.join(format!("breakdown-{dev}.md"))).unwrap();
+    assert!(breakdown.contains("decomposed:16"));
+    // The dumped primary rays of cornell-mirror are the camera's rays, answers included.
+    let rays = read_npy_f32(&dir.join("rays/cornell-mirror-primary-rays.npy"));
+    assert_eq!(rays.len(), 24 * 24 * 8);
+    let scene = scene::load("cornell-mirror").unwrap();
+    let cam = scene.camera.to_pod(24, 24);
+    let r7 = kdray_shared::camera::primary_ray(&cam, 7);
+    assert_eq!(&rays[56..64], &[r7.origin[0], r7.origin[1], r7.origin[2], r7.t_min, r7.dir[0], r7.dir[1], r7.dir[2], r7.t_max]);
+    let obj = scene::load(dir.join("rays/cornell-mirror.obj").to_str().unwrap()).unwrap();
+    assert_eq!(obj.triangles.len(), scene.triangles.len());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// CSV cells (quoted cells may hold commas).
+fn split_csv(line: &str) -> Vec<String> {
+    let mut cells = vec![String::new()];
+    let mut quoted = false;
+    for c in line.chars() {
+        match c {
+            '"' => quoted = !quoted,
+            ',' if !quoted => cells.push(String::new()),
+            c => cells.last_mut().unwrap().push(c),
+        }
+    }
+    cells
+}
+
+/// A float32 `.npy` file's data (header checked).
+fn read_npy_f32(path: &std::path::Path) -> Vec<f32> {
+    let b = std::fs::read(path).unwrap();
+    assert_eq!(&b[..8], b"\x93NUMPY\x01\x00");
+    let len = u16::from_le_bytes([b[8], b[9]]) as usize;
+    let header = std::str::from_utf8(&b[10..10 + len]).unwrap();
+    assert!(header.contains("'descr': '<f4'") && (10 + len) % 64 == 0, "{header}");
+    b[10 + len..].chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect()
 }
 
 #[test]

@@ -18,6 +18,12 @@ pub struct Cli {
 }
 
 #[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
+pub enum PipelineArg {
+    Monolithic,
+    Decomposed,
+}
+
+#[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
 pub enum DeviceArg {
     Gpu,
     Cpu,
@@ -83,9 +89,20 @@ pub enum Command {
         /// Also render on the other device, write `<out>-cpu.png`, and report how the two differ.
         #[arg(long)]
         compare: bool,
-        /// How hits are found: brute (oracle), stack, restart, pushdown, shortstack[:N].
-        #[arg(long, default_value = "shortstack")]
-        traversal: String,
+        /// How hits are found: brute (oracle), stack, restart, pushdown, shortstack[:N]
+        /// (default shortstack = shortstack:3).
+        #[arg(long)]
+        traversal: Option<String>,
+        /// Trace rays in packets of four (kd traversals; incoherent packets go ray by ray).
+        #[arg(long)]
+        packets: bool,
+        /// `monolithic` (one kernel per query) or `decomposed` (traverse → leaf lists →
+        /// intersect, full-stack traversal, overflowing lists finished by the monolithic kernel).
+        #[arg(long, value_enum, default_value = "monolithic")]
+        pipeline: PipelineArg,
+        /// Leaf-list entries per ray of the decomposed pipeline.
+        #[arg(long, default_value_t = crate::trace::DEFAULT_LEAF_CAPACITY)]
+        leaf_capacity: u32,
         /// Mirror reflections followed per pixel (only scenes with mirrors trace them).
         #[arg(long, default_value_t = 4)]
         bounces: u32,
@@ -93,23 +110,35 @@ pub enum Command {
         build: BuildArgs,
     },
     /// List the GPU adapters wgpu sees.
-    Adapters,
-    /// Benchmarks; writes CSV and Markdown tables into --out.
+    Adapters {
+        /// Also compile every kernel on the best adapter, naming each before its compilation.
+        #[arg(long)]
+        compile: bool,
+    },
+    /// Benchmarks: writes CSV and Markdown tables and PNG plots into --out.
     Bench {
-        /// `traversals`: every kd traversal, primary and shadow rays, per scene.
+        /// horn, bounces, scaling, breakdown, build, visits, traversals, or all.
         suite: String,
-        /// Scenes (repeatable): `cornell`, a .obj or a .toml file.
-        #[arg(long, default_values_t = vec!["cornell".to_string()])]
+        /// Scenes (repeatable) instead of the suite's own: built-in names, .obj or .toml files.
+        #[arg(long)]
         scene: Vec<String>,
         #[arg(long, value_enum, default_value = "gpu")]
         device: DeviceArg,
+        /// Image width and height of the ray batches.
         #[arg(long, default_value_t = 1024)]
         size: u32,
-        /// Timed repetitions after one warm-up.
+        /// Timed repetitions after one warm-up (at least 5 for published numbers).
         #[arg(long, default_value_t = 5)]
         reps: usize,
         #[arg(long, default_value = "bench-out")]
         out: PathBuf,
+        /// Also write every ray batch measured (.npy) with this project's answers and the
+        /// scene as OBJ into this folder (format: README, "Same rays for other systems").
+        #[arg(long)]
+        dump_rays: Option<PathBuf>,
+        /// Largest K of chairs:K in the scaling suite (1, 4, …, 4096).
+        #[arg(long, default_value_t = 1024)]
+        max_chairs: u32,
         #[command(flatten)]
         build: BuildArgs,
     },
@@ -128,7 +157,7 @@ fn progress(label: &str) -> ProgressBar {
 
 pub fn run(cli: Cli) -> Result<()> {
     match cli.command {
-        Command::Adapters => {
+        Command::Adapters { compile } => {
             let list = gpu::adapters();
             if list.is_empty() {
                 bail!("no GPU adapter: wgpu found no Vulkan device");
@@ -136,40 +165,71 @@ pub fn run(cli: Cli) -> Result<()> {
             for a in list {
                 println!("{}", gpu::describe(&a.get_info()));
             }
+            if compile {
+                let g = Gpu::new()?;
+                for k in crate::gpu::kernels::Kernel::all() {
+                    use std::io::Write as _;
+                    print!("compiling {} ... ", k.entry_point()?);
+                    std::io::stdout().flush()?;
+                    let start = Instant::now();
+                    g.compile(k)?;
+                    println!("{:.2} s", start.elapsed().as_secs_f64());
+                }
+            }
             Ok(())
         }
-        Command::Bench { suite, scene: scenes, device, size, reps, out, build } => {
-            let opts = build.options()?;
-            if suite != "traversals" {
-                bail!("unknown bench suite '{suite}' (known: traversals)");
-            }
+        Command::Bench { suite, scene: scenes, device, size, reps, out, dump_rays, max_chairs, build } => {
             if size == 0 || size > 4096 || reps == 0 {
                 bail!("--size must be 1..=4096 and --reps at least 1");
+            }
+            if !(1..=4096).contains(&max_chairs) {
+                bail!("--max-chairs must be 1..=4096");
+            }
+            if suite != "all" && !crate::bench::SUITES.contains(&suite.as_str()) {
+                bail!("unknown bench suite '{suite}' (known: {}, all)", crate::bench::SUITES.join(", "));
             }
             let gpu = match device {
                 DeviceArg::Gpu => Some(Gpu::new()?),
                 DeviceArg::Cpu => None,
             };
-            let dev = crate::bench::device_line(gpu.as_ref());
-            println!("device: {dev}");
-            let mut rows = Vec::new();
-            for spec in &scenes {
-                let scene = scene::load(spec)?;
-                println!("scene {}: {} triangles", scene.name, scene.triangles.len());
-                let tree = build_tree(&scene, &opts);
-                let pb = progress(&scene.name);
-                rows.extend(crate::bench::traversals(&scene, &tree, size, gpu.as_ref(), reps, &pb)?);
-                pb.finish_and_clear();
+            println!("device: {}", crate::bench::device_line(gpu.as_ref()));
+            let opts = crate::bench::Options {
+                gpu: gpu.as_ref(),
+                scenes: (!scenes.is_empty()).then_some(scenes),
+                size,
+                reps,
+                build: build.options()?,
+                out,
+                dump_rays,
+                max_chairs,
+                progress: progress("bench"),
+            };
+            let start = Instant::now();
+            let files = crate::bench::run_suite(&suite, &opts)?;
+            opts.progress.finish_and_clear();
+            for f in files {
+                println!("wrote {}", f.display());
             }
-            let name = format!("traversals-{}", if gpu.is_some() { "gpu" } else { "cpu" });
-            crate::bench::write_tables(&out, &name, &dev, &rows)?;
-            print!("{}", std::fs::read_to_string(out.join(&name).with_extension("md"))?);
-            println!("wrote {}.csv and .md", out.join(&name).display());
+            println!("bench {suite}: {:.1} s", start.elapsed().as_secs_f64());
             Ok(())
         }
-        Command::Render { scene, device, size, exposure, seed, out, compare: cmp, traversal, bounces, build } => {
+        Command::Render {
+            scene,
+            device,
+            size,
+            exposure,
+            seed,
+            out,
+            compare: cmp,
+            traversal,
+            packets,
+            pipeline,
+            leaf_capacity,
+            bounces,
+            build,
+        } => {
             let opts = build.options()?;
-            let accel = Accel::parse(&traversal)?;
+            let accel = render_accel(traversal.as_deref(), packets, pipeline, leaf_capacity)?;
             if bounces > 64 {
                 bail!("--bounces must be at most 64, got {bounces}");
             }
@@ -188,10 +248,7 @@ pub fn run(cli: Cli) -> Result<()> {
                 scene.materials.len(),
                 scene.lights().len()
             );
-            let tree = match accel {
-                Accel::Brute => None,
-                Accel::Kd(_) => Some(build_tree(&scene, &opts)),
-            };
+            let tree = accel.needs_tree().then(|| build_tree(&scene, &opts));
             let tree = tree.as_ref();
             let cam = scene.camera.to_pod(size, size);
             let gpu = match device {
@@ -243,6 +300,25 @@ pub fn run(cli: Cli) -> Result<()> {
                 println!("GPU vs CPU: {}", compare(&img, &other, exposure));
             }
             Ok(())
+        }
+    }
+}
+
+/// The hit-finding method of `render` from its options.
+fn render_accel(traversal: Option<&str>, packets: bool, pipeline: PipelineArg, leaf_capacity: u32) -> Result<Accel> {
+    match pipeline {
+        PipelineArg::Decomposed => {
+            if traversal.is_some() || packets {
+                bail!("--pipeline decomposed traverses with the full stack, one ray per thread: drop --traversal and --packets");
+            }
+            Accel::parse(&format!("decomposed:{leaf_capacity}"))
+        }
+        PipelineArg::Monolithic => {
+            let accel = Accel::parse(traversal.unwrap_or("shortstack"))?;
+            if !packets {
+                return Ok(accel);
+            }
+            accel.with_packets().ok_or_else(|| anyhow::anyhow!("--packets applies to the kd traversals, not '{}'", accel.name()))
         }
     }
 }

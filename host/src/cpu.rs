@@ -1,11 +1,14 @@
-//! The native runtime: the `kdray-shared` functions over all cores with rayon.
+//! The native runtime: the `kdray-shared` functions over all cores with rayon. Rays go through
+//! in groups of four (`PACKET`), so the packet traversal and the single-ray ones share one
+//! driver; groups past the end of a batch are padded with invalid rays (misses).
 use crate::kdtree::KdTreeData;
 use crate::scene::Scene;
 use crate::trace::{Accel, RenderOutput, Tracer};
 use anyhow::{anyhow, Result};
 use indicatif::ProgressBar;
-use kdray_shared::kdtree::{self, Algorithm, Counters, NoStats, Stats};
-use kdray_shared::{brute, camera, shade, Camera, Hit, Light, Material, PathState, Ray, Triangle};
+use kdray_shared::brute::BruteForce;
+use kdray_shared::kdtree::{self, AnyHit, Closest, Counters, KdTree, NoStats, Query, Stats, PACKET};
+use kdray_shared::{camera, shade, Camera, Hit, Light, Material, PathState, Ray, ShadeTerms, Triangle};
 use rayon::prelude::*;
 
 /// Borrows the scene and the tree: creating one copies nothing but the light list.
@@ -15,6 +18,28 @@ pub struct CpuTracer<'s> {
     lights: Vec<Light>,
     tree: Option<&'s KdTreeData>,
     has_mirror: bool,
+}
+
+/// A query the CPU runtime can start for a ray.
+trait Start: Query + BruteForce + Sized {
+    fn start(ray: &Ray) -> Self;
+}
+impl Start for Closest {
+    fn start(ray: &Ray) -> Self {
+        Closest::new(ray)
+    }
+}
+impl Start for AnyHit {
+    fn start(ray: &Ray) -> Self {
+        AnyHit::new(ray)
+    }
+}
+
+/// Up to `PACKET` rays padded with invalid ones.
+fn group(rays: &[Ray]) -> [Ray; PACKET] {
+    let mut g = [Ray::default(); PACKET];
+    g[..rays.len()].copy_from_slice(rays);
+    g
 }
 
 impl<'s> CpuTracer<'s> {
@@ -29,39 +54,92 @@ impl<'s> CpuTracer<'s> {
         }
     }
 
-    fn tree(&self) -> Result<kdtree::KdTree<'s>> {
+    fn tree(&self) -> Result<KdTree<'s>> {
         self.tree.map(|t| t.view(self.tris)).ok_or_else(|| anyhow!("no kd-tree was built for this scene"))
     }
 
-    fn closest<S: Stats>(&self, accel: Accel, ray: &Ray, stats: &mut S) -> Result<Hit> {
-        Ok(match accel {
-            Accel::Brute => brute::closest_hit(ray, self.tris),
-            Accel::Kd(alg) => kdtree::closest_hit(alg, &self.tree()?, ray, stats),
-        })
+    /// Answers `Q` for four rays with `accel`.
+    fn trace4<Q: Start, S: Stats>(&self, accel: Accel, rays: &[Ray; PACKET], stats: &mut S) -> Result<[Q; PACKET]> {
+        let mut q = rays.each_ref().map(Q::start);
+        match accel {
+            Accel::Brute => q.iter_mut().zip(rays).for_each(|(q, r)| q.brute(r, self.tris)),
+            Accel::Kd(alg) => {
+                let tree = self.tree()?;
+                q.iter_mut().zip(rays).for_each(|(q, r)| kdtree::run(alg, &tree, r, q, stats));
+            }
+            Accel::Packet(alg) => {
+                kdtree::run_packet(alg, &self.tree()?, rays, &mut q, stats);
+            }
+            Accel::Decomposed { capacity } => {
+                let tree = self.tree()?;
+                for (q, r) in q.iter_mut().zip(rays) {
+                    let l = kdtree::record_leaves(&tree, r, capacity, stats);
+                    if !kdtree::intersect_leaves(&tree, r, &l.entries, 0, l.status(), q, stats) {
+                        // The list overflowed before the answer was settled: trace it whole.
+                        *q = Q::start(r);
+                        kdtree::run(kdtree::Algorithm::Stack, &tree, r, q, stats);
+                    }
+                }
+            }
+        }
+        Ok(q)
     }
 
-    fn any<S: Stats>(&self, accel: Accel, ray: &Ray, stats: &mut S) -> Result<bool> {
-        Ok(match accel {
-            Accel::Brute => brute::any_hit(ray, self.tris),
-            Accel::Kd(alg) => kdtree::any_hit(alg, &self.tree()?, ray, stats),
-        })
+    fn closest4(&self, accel: Accel, rays: &[Ray; PACKET]) -> Result<[Hit; PACKET]> {
+        Ok(self.trace4::<Closest, _>(accel, rays, &mut NoStats)?.map(|q| q.hit))
     }
 
-    /// Per-ray traversal counters of `alg` (closest hit if `closest`, else any hit).
-    pub fn count(&self, alg: Algorithm, rays: &[Ray], closest: bool) -> Result<Vec<Counters>> {
+    fn any4(&self, accel: Accel, rays: &[Ray; PACKET]) -> Result<[bool; PACKET]> {
+        Ok(self.trace4::<AnyHit, _>(accel, rays, &mut NoStats)?.map(|q| q.found))
+    }
+
+    /// Traversal counters of `accel` (closest hit if `closest`, else any hit), one per group of
+    /// four rays in order: a packet's node and leaf visits are counted once for its four rays.
+    pub fn count(&self, accel: Accel, rays: &[Ray], closest: bool) -> Result<Vec<Counters>> {
+        rays.par_chunks(PACKET)
+            .map(|c| {
+                let mut s = Counters::default();
+                let g = group(c);
+                if closest {
+                    self.trace4::<Closest, _>(accel, &g, &mut s)?;
+                } else {
+                    self.trace4::<AnyHit, _>(accel, &g, &mut s)?;
+                }
+                Ok(s)
+            })
+            .collect()
+    }
+
+    /// How many rays the decomposed pipeline with `capacity` leaves per list must finish with
+    /// the fallback traversal (their list overflowed before the query was settled).
+    pub fn decomposed_fallbacks(&self, rays: &[Ray], capacity: u32, closest: bool) -> Result<usize> {
         let tree = self.tree()?;
         Ok(rays
             .par_iter()
-            .map(|r| {
-                let mut c = Counters::default();
+            .filter(|r| {
+                let l = kdtree::record_leaves(&tree, r, capacity, &mut NoStats);
                 if closest {
-                    kdtree::closest_hit(alg, &tree, r, &mut c);
+                    !kdtree::intersect_leaves(&tree, r, &l.entries, 0, l.status(), &mut Closest::new(r), &mut NoStats)
                 } else {
-                    kdtree::any_hit(alg, &tree, r, &mut c);
+                    !kdtree::intersect_leaves(&tree, r, &l.entries, 0, l.status(), &mut AnyHit::new(r), &mut NoStats)
                 }
-                c
             })
-            .collect())
+            .count())
+    }
+
+    /// How many of the groups of four rays the packet traversal takes together (the others go
+    /// ray by ray because their direction signs differ).
+    pub fn coherent_packets(&self, rays: &[Ray]) -> Result<usize> {
+        let tree = self.tree()?;
+        Ok(rays
+            .par_chunks(PACKET)
+            .filter(|c| {
+                let g = group(c);
+                let mut q = g.each_ref().map(AnyHit::new);
+                // Restart has no stack to allocate: the cheapest way to ask.
+                kdtree::traverse_packet::<_, _, _, false>(&tree, &g, &mut q, &mut kdtree::NoStack::new(), &mut NoStats)
+            })
+            .count())
     }
 }
 
@@ -74,15 +152,17 @@ impl Tracer for CpuTracer<'_> {
     }
 
     fn closest_hits(&self, accel: Accel, rays: &[Ray]) -> Result<Vec<Hit>> {
-        rays.par_iter().map(|r| self.closest(accel, r, &mut NoStats)).collect()
+        let groups: Vec<[Hit; PACKET]> = rays.par_chunks(PACKET).map(|c| self.closest4(accel, &group(c))).collect::<Result<_>>()?;
+        Ok(groups.into_iter().flatten().take(rays.len()).collect())
     }
 
     fn any_hits(&self, accel: Accel, rays: &[Ray]) -> Result<Vec<bool>> {
-        rays.par_iter().map(|r| self.any(accel, r, &mut NoStats)).collect()
+        let groups: Vec<[bool; PACKET]> = rays.par_chunks(PACKET).map(|c| self.any4(accel, &group(c))).collect::<Result<_>>()?;
+        Ok(groups.into_iter().flatten().take(rays.len()).collect())
     }
 
     fn render(&self, accel: Accel, cam: &Camera, seed: u32, bounces: u32, progress: &ProgressBar) -> Result<RenderOutput> {
-        if let Accel::Kd(_) = accel {
+        if accel.needs_tree() {
             self.tree()?;
         }
         let max_bounces = if self.has_mirror { bounces } else { 0 };
@@ -94,35 +174,51 @@ impl Tracer for CpuTracer<'_> {
         progress.set_length(n as u64);
         hits.par_chunks_mut(chunk).zip(radiance.par_chunks_mut(chunk)).enumerate().try_for_each(
             |(c, (hs, rs))| -> Result<()> {
-                for (k, (primary, rad)) in hs.iter_mut().zip(rs.iter_mut()).enumerate() {
-                    let pixel = (c * chunk + k) as u32;
-                    let mut ray = camera::primary_ray(cam, pixel);
-                    let mut path = PathState::START;
+                for (g, (hs, rs)) in hs.chunks_mut(PACKET).zip(rs.chunks_mut(PACKET)).enumerate() {
+                    // Four neighbouring pixels at a time, exactly as the GPU kernels treat them.
+                    let first = (c * chunk + g * PACKET) as u32;
+                    let m = hs.len();
+                    let mut rays = [Ray::default(); PACKET];
+                    for (l, r) in rays[..m].iter_mut().enumerate() {
+                        *r = camera::primary_ray(cam, first + l as u32);
+                    }
+                    let mut paths = [PathState::START; PACKET];
+                    for p in &mut paths[m..] {
+                        p.active = 0;
+                    }
                     for bounce in 0..=max_bounces {
-                        let hit = self.closest(accel, &ray, &mut NoStats)?;
+                        let hit = self.closest4(accel, &rays)?;
                         if bounce == 0 {
-                            *primary = hit;
+                            hs.copy_from_slice(&hit[..m]);
                         }
-                        let (shadow, terms) = shade::path_step(
-                            seed,
-                            pixel,
-                            bounce,
-                            max_bounces,
-                            &mut ray,
-                            &hit,
-                            &mut path,
-                            self.tris,
-                            self.materials,
-                            &self.lights,
-                            self.lights.len() as u32,
-                        );
-                        let occluded = !self.lights.is_empty() && self.any(accel, &shadow, &mut NoStats)?;
-                        shade::accumulate(&mut path, &terms, occluded);
-                        if path.active == 0 {
+                        let mut shadow = [Ray::default(); PACKET];
+                        let mut terms = [ShadeTerms::default(); PACKET];
+                        for l in 0..m {
+                            (shadow[l], terms[l]) = shade::path_step(
+                                seed,
+                                first + l as u32,
+                                bounce,
+                                max_bounces,
+                                &mut rays[l],
+                                &hit[l],
+                                &mut paths[l],
+                                self.tris,
+                                self.materials,
+                                &self.lights,
+                                self.lights.len() as u32,
+                            );
+                        }
+                        let occluded = if self.lights.is_empty() { [false; PACKET] } else { self.any4(accel, &shadow)? };
+                        for l in 0..m {
+                            shade::accumulate(&mut paths[l], &terms[l], occluded[l]);
+                        }
+                        if paths.iter().all(|p| p.active == 0) {
                             break;
                         }
                     }
-                    *rad = [path.radiance[0], path.radiance[1], path.radiance[2], 1.0];
+                    for (r, p) in rs.iter_mut().zip(&paths) {
+                        *r = [p.radiance[0], p.radiance[1], p.radiance[2], 1.0];
+                    }
                 }
                 progress.inc(hs.len() as u64);
                 Ok(())

@@ -8,10 +8,12 @@
 
 use kdray_shared::aabb::Aabb;
 use kdray_shared::kdtree::{
-    traverse, AnyHit, Closest, FullStack, KdNode, KdTree, NoStack, NoStats, ShortStack,
+    intersect_leaves, packet_or_single, record_leaves, traverse, AnyHit, Closest, Entry, FullStack, KdNode,
+    KdTree, LeafRef, NoStack, NoStats, PacketEntry, ShortStack, MAX_DEPTH, PACKET,
 };
+use kdray_shared::brute::BruteForce;
 use kdray_shared::{
-    brute, camera, shade, FrameParams, Hit, Light, Material, PathState, Ray, ShadeTerms, Triangle,
+    camera, shade, FrameParams, Hit, Light, Material, PathState, Ray, ShadeTerms, Triangle,
 };
 use kdray_shared::rng::Rng;
 use spirv_std::glam::UVec3;
@@ -93,32 +95,180 @@ fn tree<'a>(params: &FrameParams, tris: &'a [Triangle], nodes: &'a [KdNode], pri
     KdTree { nodes, prims, tris, bounds: Aabb { min: params.bounds_min, max: params.bounds_max } }
 }
 
-/// The oracle: every triangle, no tree.
-trait BruteQuery {
-    fn brute(&mut self, tree: &KdTree, ray: &Ray);
-}
-impl BruteQuery for Closest {
-    #[inline(always)]
-    fn brute(&mut self, tree: &KdTree, ray: &Ray) {
-        self.hit = brute::closest_hit(ray, tree.tris);
-    }
-}
-impl BruteQuery for AnyHit {
-    #[inline(always)]
-    fn brute(&mut self, tree: &KdTree, ray: &Ray) {
-        self.found = brute::any_hit(ray, tree.tris);
-    }
-}
-
-trace_kernels!(closest_brute, any_brute, |t, r, q| q.brute(&t, r));
+trace_kernels!(closest_brute, any_brute, |t, r, q| q.brute(r, t.tris));
 trace_kernels!(closest_stack, any_stack, |t, r, q| traverse::<_, _, _, false>(&t, r, &mut q, &mut FullStack::new(), &mut NoStats));
 trace_kernels!(closest_restart, any_restart, |t, r, q| traverse::<_, _, _, false>(&t, r, &mut q, &mut NoStack::new(), &mut NoStats));
 trace_kernels!(closest_pushdown, any_pushdown, |t, r, q| traverse::<_, _, _, true>(&t, r, &mut q, &mut NoStack::new(), &mut NoStats));
-trace_kernels!(closest_shortstack1, any_shortstack1, |t, r, q| traverse::<_, _, _, true>(&t, r, &mut q, &mut ShortStack::<1>::new(), &mut NoStats));
-trace_kernels!(closest_shortstack2, any_shortstack2, |t, r, q| traverse::<_, _, _, true>(&t, r, &mut q, &mut ShortStack::<2>::new(), &mut NoStats));
-trace_kernels!(closest_shortstack3, any_shortstack3, |t, r, q| traverse::<_, _, _, true>(&t, r, &mut q, &mut ShortStack::<3>::new(), &mut NoStats));
-trace_kernels!(closest_shortstack4, any_shortstack4, |t, r, q| traverse::<_, _, _, true>(&t, r, &mut q, &mut ShortStack::<4>::new(), &mut NoStats));
-trace_kernels!(closest_shortstack8, any_shortstack8, |t, r, q| traverse::<_, _, _, true>(&t, r, &mut q, &mut ShortStack::<8>::new(), &mut NoStats));
+trace_kernels!(closest_shortstack1, any_shortstack1, |t, r, q| traverse::<_, _, _, true>(&t, r, &mut q, &mut ShortStack::<Entry, 1>::new(), &mut NoStats));
+trace_kernels!(closest_shortstack2, any_shortstack2, |t, r, q| traverse::<_, _, _, true>(&t, r, &mut q, &mut ShortStack::<Entry, 2>::new(), &mut NoStats));
+trace_kernels!(closest_shortstack3, any_shortstack3, |t, r, q| traverse::<_, _, _, true>(&t, r, &mut q, &mut ShortStack::<Entry, 3>::new(), &mut NoStats));
+trace_kernels!(closest_shortstack4, any_shortstack4, |t, r, q| traverse::<_, _, _, true>(&t, r, &mut q, &mut ShortStack::<Entry, 4>::new(), &mut NoStats));
+trace_kernels!(closest_shortstack8, any_shortstack8, |t, r, q| traverse::<_, _, _, true>(&t, r, &mut q, &mut ShortStack::<Entry, 8>::new(), &mut NoStats));
+
+/// Four rays per thread (Horn et al.'s packets): thread `i` traces rays 4i..4i+3 together when
+/// their direction signs agree, else one by one. `$kp`/`$k` are the packet and single-ray stacks.
+macro_rules! packet_kernels {
+    ($closest:ident, $any:ident, $kp:ty, $k:ty, $pushdown:expr) => {
+        #[spirv(compute(threads(64)))]
+        pub fn $closest(
+            #[spirv(global_invocation_id)] id: UVec3,
+            #[spirv(num_workgroups)] groups: UVec3,
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &FrameParams,
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[Ray],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] tris: &[Triangle],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] nodes: &[KdNode],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] prims: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] hits: &mut [Hit],
+        ) {
+            let first = item(id, groups) * PACKET as u32;
+            if first < params.count {
+                let t = tree(params, tris, nodes, prims);
+                let r = packet_rays(params, rays, first);
+                let mut q = [Closest::new(&r[0]), Closest::new(&r[1]), Closest::new(&r[2]), Closest::new(&r[3])];
+                packet_or_single::<_, $kp, $k, _, $pushdown>(&t, &r, &mut q, &mut NoStats);
+                let mut l = 0;
+                while l < PACKET as u32 {
+                    if first + l < params.count {
+                        hits[(first + l) as usize] = q[l as usize].hit;
+                    }
+                    l += 1;
+                }
+            }
+        }
+
+        #[spirv(compute(threads(64)))]
+        pub fn $any(
+            #[spirv(global_invocation_id)] id: UVec3,
+            #[spirv(num_workgroups)] groups: UVec3,
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &FrameParams,
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[Ray],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] tris: &[Triangle],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] nodes: &[KdNode],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] prims: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] occluded: &mut [u32],
+        ) {
+            let first = item(id, groups) * PACKET as u32;
+            if first < params.count {
+                let t = tree(params, tris, nodes, prims);
+                let r = packet_rays(params, rays, first);
+                let mut q = [AnyHit::new(&r[0]), AnyHit::new(&r[1]), AnyHit::new(&r[2]), AnyHit::new(&r[3])];
+                packet_or_single::<_, $kp, $k, _, $pushdown>(&t, &r, &mut q, &mut NoStats);
+                let mut l = 0;
+                while l < PACKET as u32 {
+                    if first + l < params.count {
+                        occluded[(first + l) as usize] = q[l as usize].found as u32;
+                    }
+                    l += 1;
+                }
+            }
+        }
+    };
+}
+
+/// Rays `first..first + 4`; past the end of the batch, invalid rays (misses, never written).
+#[inline(always)]
+fn packet_rays(params: &FrameParams, rays: &[Ray], first: u32) -> [Ray; PACKET] {
+    let mut r = [Ray::default(); PACKET];
+    let mut l = 0;
+    while l < PACKET as u32 {
+        if first + l < params.count {
+            r[l as usize] = rays[(first + l) as usize];
+        }
+        l += 1;
+    }
+    r
+}
+
+packet_kernels!(closest_packet_stack, any_packet_stack, ShortStack<PacketEntry, MAX_DEPTH>, FullStack, false);
+packet_kernels!(closest_packet_restart, any_packet_restart, NoStack, NoStack, false);
+packet_kernels!(closest_packet_pushdown, any_packet_pushdown, NoStack, NoStack, true);
+packet_kernels!(closest_packet_shortstack3, any_packet_shortstack3, ShortStack<PacketEntry, 3>, ShortStack<Entry, 3>, true);
+
+/// Decomposed pipeline, step 1: each ray's non-empty leaves (full-stack traversal) into
+/// `lists[i · cap ..]`, the count and overflow bit into `status[i]`.
+#[spirv(compute(threads(64)))]
+pub fn traverse_leaves(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(num_workgroups)] groups: UVec3,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &FrameParams,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[Ray],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] tris: &[Triangle],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] nodes: &[KdNode],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] prims: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] lists: &mut [LeafRef],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] status: &mut [u32],
+) {
+    let i = item(id, groups);
+    if i < params.count {
+        let t = tree(params, tris, nodes, prims);
+        let cap = params.leaf_capacity;
+        let l = record_leaves(&t, &rays[i as usize], cap, &mut NoStats);
+        let base = (i * cap) as usize;
+        let mut k = 0;
+        while k < l.len {
+            lists[base + k as usize] = l.entries[k as usize];
+            k += 1;
+        }
+        status[i as usize] = l.status();
+    }
+}
+
+/// Decomposed pipeline, step 2 (closest / any hit over the listed leaves) and its fallback:
+/// step 2 leaves `status[i]` = 1 where the list overflowed without settling the query (0
+/// elsewhere); the fallback kernel traces exactly those rays with the full-stack traversal.
+macro_rules! leaf_kernels {
+    ($intersect:ident, $fallback:ident, $query:ident, $out:ty, |$q:ident| $result:expr) => {
+        #[spirv(compute(threads(64)))]
+        pub fn $intersect(
+            #[spirv(global_invocation_id)] id: UVec3,
+            #[spirv(num_workgroups)] groups: UVec3,
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &FrameParams,
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[Ray],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] tris: &[Triangle],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] nodes: &[KdNode],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] prims: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] lists: &[LeafRef],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] status: &mut [u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] out: &mut [$out],
+        ) {
+            let i = item(id, groups);
+            if i < params.count {
+                let k = i as usize;
+                let t = tree(params, tris, nodes, prims);
+                let ray = &rays[k];
+                let mut $q = $query::new(ray);
+                let settled = intersect_leaves(&t, ray, lists, k * params.leaf_capacity as usize, status[k], &mut $q, &mut NoStats);
+                status[k] = !settled as u32;
+                out[k] = $result;
+            }
+        }
+
+        #[spirv(compute(threads(64)))]
+        pub fn $fallback(
+            #[spirv(global_invocation_id)] id: UVec3,
+            #[spirv(num_workgroups)] groups: UVec3,
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &FrameParams,
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[Ray],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] tris: &[Triangle],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] nodes: &[KdNode],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] prims: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] status: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] out: &mut [$out],
+        ) {
+            let i = item(id, groups);
+            if i < params.count && status[i as usize] != 0 {
+                let t = tree(params, tris, nodes, prims);
+                let ray = &rays[i as usize];
+                let mut $q = $query::new(ray);
+                traverse::<_, _, _, false>(&t, ray, &mut $q, &mut FullStack::new(), &mut NoStats);
+                out[i as usize] = $result;
+            }
+        }
+    };
+}
+
+leaf_kernels!(closest_leaves, closest_fallback, Closest, Hit, |q| q.hit);
+leaf_kernels!(any_leaves, any_fallback, AnyHit, u32, |q| q.found as u32);
 
 /// One bounce of every path: reflect at mirrors (updating `rays` in place) or shade.
 #[spirv(compute(threads(64)))]

@@ -1,5 +1,6 @@
 //! Brute-force closest-hit and any-hit over a triangle list: the oracle every accelerated
 //! traversal is checked against. Ties in t keep the lower primitive index.
+use crate::kdtree::{AnyHit, Closest};
 use crate::pod::{Hit, Triangle};
 use crate::ray::Ray;
 use crate::triangle::{intersect_triangle, ShearedRay};
@@ -43,4 +44,21 @@ pub fn any_hit(ray: &Ray, tris: &[Triangle]) -> bool {
         i += 1;
     }
     false
+}
+
+/// A hit query answered by the oracle (the brute-force kernels and the CPU runtime).
+pub trait BruteForce {
+    fn brute(&mut self, ray: &Ray, tris: &[Triangle]);
+}
+impl BruteForce for Closest {
+    #[inline(always)]
+    fn brute(&mut self, ray: &Ray, tris: &[Triangle]) {
+        self.hit = closest_hit(ray, tris);
+    }
+}
+impl BruteForce for AnyHit {
+    #[inline(always)]
+    fn brute(&mut self, ray: &Ray, tris: &[Triangle]) {
+        self.found = any_hit(ray, tris);
+    }
 }

@@ -106,6 +106,9 @@ pub struct FrameParams {
     /// Mirror reflections followed before a path is shaded as diffuse.
     pub max_bounces: u32,
     pub camera: Camera,
+    /// Entries per ray of the decomposed pipeline's leaf lists.
+    pub leaf_capacity: u32,
+    pub _pad: [u32; 3],
 }
 
 /// What shading needs after the shadow ray: radiance reaching the eye regardless of the shadow

@@ -96,7 +96,8 @@ pub fn light_sample(
 /// One step of a pixel's path at its `bounce`-th hit: a mirror (before the last bounce)
 /// reflects `ray` in place and scales the throughput by its colour; anything else is shaded
 /// (emission + one shadow ray) and ends the path. Returns the shadow ray (`NO_RAY` if none) and
-/// the terms to `accumulate`, already weighted by the path's throughput.
+/// the terms to `accumulate`, already weighted by the path's throughput. A path that ends
+/// leaves `NO_RAY` in `ray`, so later bounces trace nothing for it.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 pub fn path_step(
@@ -118,6 +119,7 @@ pub fn path_step(
     }
     if !hit.is_hit() {
         path.active = 0;
+        *ray = NO_RAY;
         return (NO_RAY, terms);
     }
     let tri = &tris[hit.prim as usize];
@@ -136,6 +138,7 @@ pub fn path_step(
     terms.base = mul3(path.throughput, t.base);
     terms.direct = mul3(path.throughput, t.direct);
     path.active = 0;
+    *ray = NO_RAY;
     (shadow, terms)
 }
 

@@ -20,7 +20,7 @@ use crate::math::{diff_of_products, fma, pow2_normaliser};
 use crate::ray::Ray;
 
 /// Per-ray constants of the test, computed once per ray.
-#[derive(Copy, Clone, Debug)]
+#[derive(Copy, Clone, Debug, Default)]
 pub struct ShearedRay {
     pub origin: [f32; 3],
     pub kx: usize,

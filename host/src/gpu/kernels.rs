@@ -13,10 +13,17 @@ pub enum Kernel {
     PathStep,
     Accumulate,
     RngFill,
+    /// Decomposed pipeline: leaf lists, intersection over them (closest / any), fallback.
+    TraverseLeaves,
+    IntersectLeaves { closest: bool },
+    Fallback { closest: bool },
 }
 
 /// Short-stack sizes with GPU kernels (`trace_kernels!` in shader-crate).
 pub const GPU_SHORT_STACKS: [u32; 5] = [1, 2, 3, 4, 8];
+
+/// Traversals with GPU packet kernels (`packet_kernels!`): Horn et al.'s rows.
+pub const GPU_PACKETS: [Algorithm; 4] = [Algorithm::Stack, Algorithm::Restart, Algorithm::PushDown, Algorithm::ShortStack(3)];
 
 /// Every entry point of the module.
 pub const ENTRY_POINTS: &[&str] = &[
@@ -25,11 +32,20 @@ pub const ENTRY_POINTS: &[&str] = &[
     "closest_pushdown", "any_pushdown", "closest_shortstack1", "any_shortstack1",
     "closest_shortstack2", "any_shortstack2", "closest_shortstack3", "any_shortstack3",
     "closest_shortstack4", "any_shortstack4", "closest_shortstack8", "any_shortstack8",
+    "closest_packet_stack", "any_packet_stack", "closest_packet_restart", "any_packet_restart",
+    "closest_packet_pushdown", "any_packet_pushdown", "closest_packet_shortstack3", "any_packet_shortstack3",
+    "traverse_leaves", "closest_leaves", "any_leaves", "closest_fallback", "any_fallback",
 ];
 
 fn accel_suffix(a: Accel) -> Result<&'static str> {
     Ok(match a {
         Accel::Brute => "brute",
+        Accel::Packet(Algorithm::Stack) => "packet_stack",
+        Accel::Packet(Algorithm::Restart) => "packet_restart",
+        Accel::Packet(Algorithm::PushDown) => "packet_pushdown",
+        Accel::Packet(Algorithm::ShortStack(3)) => "packet_shortstack3",
+        Accel::Decomposed { .. } => bail!("the decomposed pipeline has no single kernel (traverse_leaves, *_leaves, *_fallback)"),
+        Accel::Packet(_) => bail!("no GPU packet kernel for {}: built for stack, restart, pushdown, shortstack:3", a.name()),
         Accel::Kd(Algorithm::Stack) => "stack",
         Accel::Kd(Algorithm::Restart) => "restart",
         Accel::Kd(Algorithm::PushDown) => "pushdown",
@@ -51,6 +67,11 @@ impl Kernel {
             Kernel::PathStep => "path_step",
             Kernel::Accumulate => "accumulate",
             Kernel::RngFill => "rng_fill",
+            Kernel::TraverseLeaves => "traverse_leaves",
+            Kernel::IntersectLeaves { closest: true } => "closest_leaves",
+            Kernel::IntersectLeaves { closest: false } => "any_leaves",
+            Kernel::Fallback { closest: true } => "closest_fallback",
+            Kernel::Fallback { closest: false } => "any_fallback",
             Kernel::Closest(a) | Kernel::Any(a) => {
                 let prefix = if matches!(self, Kernel::Closest(_)) { "closest_" } else { "any_" };
                 let full = format!("{prefix}{}", accel_suffix(a)?);
@@ -68,6 +89,32 @@ impl Kernel {
             Kernel::PathStep => &[false, true, true, true, true, false, false, false],
             Kernel::Accumulate => &[true, true, false, false],
             Kernel::RngFill => &[false],
+            Kernel::TraverseLeaves => &[true, true, true, true, false, false],
+            Kernel::IntersectLeaves { .. } => &[true, true, true, true, true, false, false],
+            Kernel::Fallback { .. } => &[true, true, true, true, true, false],
+        }
+    }
+
+    /// Every kernel of the module (one per entry point).
+    pub fn all() -> Vec<Kernel> {
+        let mut v = vec![Kernel::CameraRays, Kernel::PathStep, Kernel::Accumulate, Kernel::RngFill, Kernel::TraverseLeaves];
+        for closest in [true, false] {
+            v.push(Kernel::IntersectLeaves { closest });
+            v.push(Kernel::Fallback { closest });
+        }
+        let accels = Accel::all().into_iter().chain(GPU_PACKETS.map(Accel::Packet));
+        for a in accels {
+            v.push(Kernel::Closest(a));
+            v.push(Kernel::Any(a));
+        }
+        v
+    }
+
+    /// Work items (rays) per thread: 4 for the packet kernels.
+    pub fn items_per_thread(self) -> u32 {
+        match self {
+            Kernel::Closest(Accel::Packet(_)) | Kernel::Any(Accel::Packet(_)) => kdray_shared::kdtree::PACKET as u32,
+            _ => 1,
         }
     }
 }

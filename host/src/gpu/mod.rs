@@ -147,6 +147,11 @@ impl Gpu {
         Ok((pipeline, bgl))
     }
 
+    /// Creates the pipeline of `kernel` now (the driver compiles it), instead of on first use.
+    pub fn compile(&self, kernel: Kernel) -> Result<()> {
+        self.pipeline(kernel).map(|_| ())
+    }
+
     pub fn adapter_line(&self) -> String {
         describe(&self.info)
     }
@@ -207,18 +212,14 @@ impl Gpu {
         params: &FrameParams,
         buffers: &[&wgpu::Buffer],
     ) -> Result<()> {
-        self.record_timed(encoder, kernel, params, buffers, None)
+        self.record_pass(encoder, &Pass { kernel, params: *params, buffers: buffers.to_vec() }, None)
     }
 
-    /// `record`, writing timestamps at the start and end of the pass into queries 0 and 1.
-    pub fn record_timed(
-        &self,
-        encoder: &mut wgpu::CommandEncoder,
-        kernel: Kernel,
-        params: &FrameParams,
-        buffers: &[&wgpu::Buffer],
-        timer: Option<&wgpu::QuerySet>,
-    ) -> Result<()> {
+    /// Records `pass`, writing timestamps at its start and end into queries `2i` and `2i + 1` of
+    /// `timer = (queries, i)`.
+    fn record_pass(&self, encoder: &mut wgpu::CommandEncoder, pass: &Pass, timer: Option<(&wgpu::QuerySet, u32)>) -> Result<()> {
+        let Pass { kernel, params, buffers } = pass;
+        let kernel = *kernel;
         let (pipeline, bgl) = &self.pipeline(kernel)?;
         assert_eq!(buffers.len(), kernel.bindings().len(), "binding count of {kernel:?}");
         let pbuf = self.upload("params", std::slice::from_ref(params))?;
@@ -234,21 +235,26 @@ impl Gpu {
             layout: bgl,
             entries: &entries,
         });
-        let (gx, gy) = self.grid(params.count)?;
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+        let (gx, gy) = self.grid(params.count.div_ceil(kernel.items_per_thread()))?;
+        let mut cpass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some(kernel.entry_point()?),
-            timestamp_writes: timer.map(|q| wgpu::ComputePassTimestampWrites {
+            timestamp_writes: timer.map(|(q, i)| wgpu::ComputePassTimestampWrites {
                 query_set: q,
-                beginning_of_pass_write_index: Some(0),
-                end_of_pass_write_index: Some(1),
+                beginning_of_pass_write_index: Some(2 * i),
+                end_of_pass_write_index: Some(2 * i + 1),
             }),
         });
-        pass.set_pipeline(pipeline);
-        pass.set_bind_group(0, &bg, &[]);
+        cpass.set_pipeline(pipeline);
+        cpass.set_bind_group(0, &bg, &[]);
         if gx > 0 {
-            pass.dispatch_workgroups(gx, gy, 1);
+            cpass.dispatch_workgroups(gx, gy, 1);
         }
         Ok(())
+    }
+
+    /// Records a sequence of passes.
+    pub fn record_passes(&self, encoder: &mut wgpu::CommandEncoder, passes: &[Pass]) -> Result<()> {
+        passes.iter().try_for_each(|p| self.record_pass(encoder, p, None))
     }
 
     /// Workgroup grid (x, y) covering `count` items.
@@ -263,34 +269,33 @@ impl Gpu {
         Ok((gx, gy.max(if gx == 0 { 0 } else { 1 })))
     }
 
-    /// Runs one dispatch `reps` times after a warm-up; per run the wall time from submit to
-    /// completion and, where the adapter has timestamp queries, the GPU time of the pass (ms).
-    pub fn time_kernel(
-        &self,
-        kernel: Kernel,
-        params: &FrameParams,
-        buffers: &[&wgpu::Buffer],
-        reps: usize,
-    ) -> Result<Timing> {
+    /// Runs a sequence of passes `reps` times after a warm-up. Per run: the wall time from
+    /// submit to completion and, where the adapter has timestamp queries, the GPU time from the
+    /// start of the first pass to the end of the last and the GPU time of each pass (ms).
+    pub fn time_passes(&self, passes: &[Pass], reps: usize) -> Result<Timing> {
+        let n = passes.len() as u32;
         let qs = self.timestamps.then(|| {
             self.device.create_query_set(&wgpu::QuerySetDescriptor {
-                label: Some("kernel timer"),
+                label: Some("pass timer"),
                 ty: wgpu::QueryType::Timestamp,
-                count: 2,
+                count: 2 * n,
             })
         });
         let resolve = self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("timestamps"),
-            size: 16,
+            size: 16 * n as u64,
             usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
             mapped_at_creation: false,
         });
-        let mut t = Timing::default();
+        let mut t = Timing { parts_ms: vec![Vec::new(); passes.len()], ..Default::default() };
+        let period = self.queue.get_timestamp_period() as f64 * 1e-6;
         for rep in 0..=reps {
             let mut enc = self.encoder();
-            self.record_timed(&mut enc, kernel, params, buffers, qs.as_ref())?;
+            for (i, p) in passes.iter().enumerate() {
+                self.record_pass(&mut enc, p, qs.as_ref().map(|q| (q, i as u32)))?;
+            }
             if let Some(q) = &qs {
-                enc.resolve_query_set(q, 0..2, &resolve, 0);
+                enc.resolve_query_set(q, 0..2 * n, &resolve, 0);
             }
             let start = std::time::Instant::now();
             self.submit_wait(enc)?;
@@ -300,9 +305,11 @@ impl Gpu {
             }
             t.wall_ms.push(wall);
             if qs.is_some() {
-                let ticks: Vec<u64> = self.read(&resolve, 2)?;
-                let ns = ticks[1].wrapping_sub(ticks[0]) as f64 * self.queue.get_timestamp_period() as f64;
-                t.gpu_ms.push(ns * 1e-6);
+                let ticks: Vec<u64> = self.read(&resolve, 2 * n as usize)?;
+                t.gpu_ms.push(ticks[2 * n as usize - 1].wrapping_sub(ticks[0]) as f64 * period);
+                for (i, part) in t.parts_ms.iter_mut().enumerate() {
+                    part.push(ticks[2 * i + 1].wrapping_sub(ticks[2 * i]) as f64 * period);
+                }
             }
         }
         Ok(t)
@@ -353,11 +360,21 @@ impl Gpu {
     }
 }
 
-/// Repeated measurements of one dispatch, in milliseconds.
+/// One dispatch: a kernel, its parameters and its buffers (bindings 1..).
+#[derive(Clone)]
+pub struct Pass<'a> {
+    pub kernel: Kernel,
+    pub params: FrameParams,
+    pub buffers: Vec<&'a wgpu::Buffer>,
+}
+
+/// Repeated measurements of a sequence of dispatches, in milliseconds: wall time, GPU time of
+/// the whole sequence, and GPU time of each pass (empty without timestamp queries).
 #[derive(Clone, Debug, Default)]
 pub struct Timing {
     pub wall_ms: Vec<f64>,
     pub gpu_ms: Vec<f64>,
+    pub parts_ms: Vec<Vec<f64>>,
 }
 
 pub fn median(v: &[f64]) -> Option<f64> {

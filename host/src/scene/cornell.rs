@@ -64,16 +64,28 @@ pub fn cornell_box() -> Scene {
 
 /// The Cornell box with a mirror tall block and a mirror back wall (for reflection rays).
 pub fn cornell_mirror() -> Scene {
+    with_mirrors("cornell-mirror", |i, n| (6..8).contains(&i) || i >= n - 10)
+}
+
+/// The Cornell box with mirror walls (back, left, right) and mirror blocks: most paths reflect
+/// several times (the reflection-ray benchmark: rays diverge bounce after bounce).
+pub fn cornell_mirrors() -> Scene {
+    with_mirrors("cornell-mirrors", |i, _| i >= 6)
+}
+
+/// The Cornell box with the triangles `mirror(index, count)` made mirrors.
+fn with_mirrors(name: &str, is_mirror: impl Fn(usize, usize) -> bool) -> Scene {
     let mut s = cornell_box();
-    s.name = "cornell-mirror".into();
+    s.name = name.into();
     let mirror = s.add_material(
         "mirror",
         Material { diffuse: [0.9, 0.9, 0.9], flags: kdray_shared::MAT_MIRROR, ..Default::default() },
     );
-    // Triangles 6..8 are the back wall, the last 10 the tall block.
+    // Triangles 0..2 are the light, 2..4 the floor, 4..6 the ceiling, 6..8 the back wall,
+    // 8..12 the side walls, then the short and the tall block (10 each).
     let n = s.triangles.len();
     for (i, t) in s.triangles.iter_mut().enumerate() {
-        if (6..8).contains(&i) || i >= n - 10 {
+        if is_mirror(i, n) {
             t.material = mirror;
         }
     }

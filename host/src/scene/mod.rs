@@ -210,6 +210,7 @@ pub fn load(spec: &str) -> Result<Scene> {
     let scene = match spec {
         "cornell" => cornell::cornell_box(),
         "cornell-mirror" => cornell::cornell_mirror(),
+        "cornell-mirrors" => cornell::cornell_mirrors(),
         "cornell-chair" => procedural::cornell_chair()?,
         "conference" => procedural::conference()?,
         s if s.starts_with("chairs:") => match s["chairs:".len()..].parse::<u32>() {
@@ -218,7 +219,7 @@ pub fn load(spec: &str) -> Result<Scene> {
         },
         s if s.ends_with(".obj") => obj::load_obj_scene(std::path::Path::new(s))?,
         s if s.ends_with(".toml") => file::load_scene_file(std::path::Path::new(s))?,
-        s => bail!("unknown scene '{s}': use cornell, cornell-mirror, cornell-chair, chairs:K, conference, a .obj file or a .toml scene file"),
+        s => bail!("unknown scene '{s}': use cornell, cornell-mirror, cornell-mirrors, cornell-chair, chairs:K, conference, a .obj file or a .toml scene file"),
     };
     scene.validate()?;
     Ok(scene)

@@ -1,0 +1,206 @@
+//! Benchmarks: every suite writes a CSV and a Markdown table (and PNG plots) with the date,
+//! the machine, the device and an error column next to every speed. Timed runs carry no
+//! counters; node/leaf/triangle counts come from a separate counting run (natively: the same
+//! algorithm visits the same nodes on every device).
+//!
+//! Error columns: `oracle mismatch` = fraction of a fixed sample of `ORACLE_SAMPLE` rays whose
+//! answer (hit triangle id, or occluded or not) differs from the brute-force oracle;
+//! `vs reference` = fraction of all rays whose answer differs from the native full-stack
+//! traversal (itself bit-identical to the oracle in the tests).
+pub mod dump;
+pub mod plot;
+pub mod rays;
+mod suites;
+mod table;
+
+pub use suites::{run_suite, Options, Scenes, SUITES};
+pub use table::{write_cells, write_rows, Row};
+
+use crate::gpu::{self, median, tracer::GpuTracer, Gpu};
+use crate::kdtree::KdTreeData;
+use crate::scene::Scene;
+use crate::trace::Accel;
+use crate::{CpuTracer, Tracer};
+use anyhow::Result;
+use kdray_shared::kdtree::{Algorithm, Counters};
+use kdray_shared::rng::Rng;
+use kdray_shared::Ray;
+use std::time::Instant;
+
+/// Rays checked against the brute-force oracle per row (the oracle is O(N) per ray).
+pub const ORACLE_SAMPLE: usize = 4096;
+
+/// UTC date (YYYY-MM-DD) of now.
+pub fn today() -> String {
+    let days = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_secs() / 86400)
+        .unwrap_or(0) as i64;
+    // Civil-from-days (H. Hinnant).
+    let z = days + 719468;
+    let era = z.div_euclid(146097);
+    let doe = z - era * 146097;
+    let yoe = (doe - doe / 1460 + doe / 36524 - doe / 146096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let d = doy - (153 * mp + 2) / 5 + 1;
+    let m = if mp < 10 { mp + 3 } else { mp - 9 };
+    let y = yoe + era * 400 + (m <= 2) as i64;
+    format!("{y:04}-{m:02}-{d:02}")
+}
+
+/// CPU model and core count of this machine.
+pub fn machine() -> String {
+    let model = std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|s| s.lines().find(|l| l.starts_with("model name")).map(|l| l.split(':').nth(1).unwrap_or("").trim().to_string()))
+        .unwrap_or_else(|| std::env::consts::ARCH.to_string());
+    format!("{model} ×{}", std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1))
+}
+
+/// The adapter line, or the CPU.
+pub fn device_line(g: Option<&Gpu>) -> String {
+    match g {
+        Some(g) => gpu::describe(&g.info),
+        None => format!("CPU ({} threads)", rayon::current_num_threads()),
+    }
+}
+
+/// One scene ready to be measured: its tree and both runtimes.
+pub struct Bed<'a> {
+    pub scene: &'a Scene,
+    pub tree: &'a KdTreeData,
+    pub cpu: CpuTracer<'a>,
+    pub gpu: Option<GpuTracer<'a>>,
+    pub size: u32,
+    pub reps: usize,
+}
+
+impl<'a> Bed<'a> {
+    pub fn new(scene: &'a Scene, tree: &'a KdTreeData, gpu: Option<&'a Gpu>, size: u32, reps: usize) -> Result<Self> {
+        Ok(Bed {
+            scene,
+            tree,
+            cpu: CpuTracer::new(scene, Some(tree)),
+            gpu: match gpu {
+                Some(g) => Some(GpuTracer::new(g, scene, Some(tree))?),
+                None => None,
+            },
+            size,
+            reps,
+        })
+    }
+
+    /// The runtime being measured.
+    pub fn tracer(&self) -> &dyn Tracer {
+        match &self.gpu {
+            Some(g) => g,
+            None => &self.cpu,
+        }
+    }
+
+    /// A ray set with its oracle sample and native full-stack reference answers.
+    pub fn ray_set(&self, kind: impl Into<String>, rays: Vec<Ray>, closest: bool) -> Result<RaySet> {
+        let mut rng = Rng::new(7, rays.len() as u32);
+        let sample: Vec<Ray> = if rays.is_empty() {
+            Vec::new()
+        } else {
+            (0..ORACLE_SAMPLE.min(rays.len())).map(|_| rays[(rng.next_u32() as usize) % rays.len()]).collect()
+        };
+        Ok(RaySet {
+            kind: kind.into(),
+            oracle: answers(&self.cpu, Accel::Brute, &sample, closest)?,
+            reference: answers(&self.cpu, Accel::Kd(Algorithm::Stack), &rays, closest)?,
+            rays,
+            sample,
+            closest,
+        })
+    }
+
+    /// Times `accel` on `set` (median of `reps` runs after a warm-up), counts its work per ray
+    /// natively, and checks its answers against the oracle sample and the reference.
+    pub fn measure(&self, set: &RaySet, accel: Accel) -> Result<Row> {
+        let counts = self.cpu.count(accel, &set.rays, set.closest)?;
+        let (wall, gpu_ms, parts, got) = match &self.gpu {
+            Some(g) => {
+                let t = g.time(accel, set.closest, &set.rays, self.reps)?;
+                let parts = t.parts_ms.iter().map(|p| median(p).unwrap_or(f64::NAN)).collect::<Vec<_>>();
+                (median(&t.wall_ms).unwrap_or(f64::NAN), median(&t.gpu_ms), parts, answers(g, accel, &set.rays, set.closest)?)
+            }
+            None => {
+                let mut times = Vec::new();
+                let mut got = Vec::new();
+                for rep in 0..=self.reps {
+                    let start = Instant::now();
+                    got = answers(&self.cpu, accel, &set.rays, set.closest)?;
+                    if rep > 0 {
+                        times.push(start.elapsed().as_secs_f64() * 1e3);
+                    }
+                }
+                (median(&times).unwrap_or(f64::NAN), None, Vec::new(), got)
+            }
+        };
+        let sample = answers(self.tracer(), accel, &set.sample, set.closest)?;
+        let n = set.rays.len();
+        let per_ray = |f: fn(&Counters) -> u32| counts.iter().map(|c| f(c) as f64).sum::<f64>() / n.max(1) as f64;
+        let mut notes = Vec::new();
+        if let Accel::Packet(_) = accel {
+            let coherent = self.cpu.coherent_packets(&set.rays)?;
+            notes.push(format!("{:.1} % of packets coherent", 100.0 * coherent as f64 / n.div_ceil(4).max(1) as f64));
+        }
+        if let Accel::Decomposed { capacity } = accel {
+            let fallbacks = self.cpu.decomposed_fallbacks(&set.rays, capacity, set.closest)?;
+            notes.push(format!(
+                "fallback {fallbacks} rays ({:.2} %), leaf lists {:.1} MiB",
+                100.0 * fallbacks as f64 / n.max(1) as f64,
+                (n * capacity as usize * std::mem::size_of::<kdray_shared::kdtree::LeafRef>()) as f64 / 1048576.0
+            ));
+            if parts.len() == 3 {
+                notes.push(format!("GPU ms traverse {:.3} / intersect {:.3} / fallback {:.3}", parts[0], parts[1], parts[2]));
+            }
+        }
+        Ok(Row {
+            scene: self.scene.name.clone(),
+            triangles: self.scene.triangles.len(),
+            resolution: self.size,
+            ray_type: set.kind.clone(),
+            rays: n,
+            method: accel.name(),
+            mrays_gpu: gpu_ms.map(|ms| n as f64 / (ms * 1e3)),
+            mrays_wall: n as f64 / (wall * 1e3),
+            nodes: per_ray(|c| c.nodes),
+            leaves: per_ray(|c| c.leaves),
+            tris: per_ray(|c| c.tris),
+            restarts: per_ray(|c| c.restarts),
+            vs_stack: None,
+            oracle_mismatch: mismatch(&sample, &set.oracle),
+            reference_mismatch: mismatch(&got, &set.reference),
+            notes: notes.join("; "),
+        })
+    }
+}
+
+/// Rays of one type with what their answers are checked against.
+pub struct RaySet {
+    /// `primary`, `shadow`, `reflection N`.
+    pub kind: String,
+    pub rays: Vec<Ray>,
+    pub closest: bool,
+    pub sample: Vec<Ray>,
+    pub oracle: Vec<u32>,
+    pub reference: Vec<u32>,
+}
+
+/// Answers as numbers: the hit triangle id (closest hit) or 1/0 (any hit).
+pub fn answers(t: &dyn Tracer, accel: Accel, rays: &[Ray], closest: bool) -> Result<Vec<u32>> {
+    Ok(if closest {
+        t.closest_hits(accel, rays)?.iter().map(|h| h.prim).collect()
+    } else {
+        t.any_hits(accel, rays)?.iter().map(|o| *o as u32).collect()
+    })
+}
+
+/// Fraction of `a` and `b` that differ.
+pub fn mismatch<T: PartialEq>(a: &[T], b: &[T]) -> f64 {
+    a.iter().zip(b).filter(|(x, y)| x != y).count() as f64 / a.len().max(1) as f64
+}

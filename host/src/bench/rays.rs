@@ -1,0 +1,55 @@
+//! The ray batches of the benchmarks, generated natively with the renderer's own functions:
+//! primary rays through pixel centres, the shadow rays of the pixels that hit, and the rays of
+//! the n-th mirror reflection.
+use crate::kdtree::KdTreeData;
+use crate::scene::Scene;
+use crate::trace::Accel;
+use crate::{CpuTracer, Tracer};
+use anyhow::Result;
+use kdray_shared::kdtree::Algorithm;
+use kdray_shared::{camera, shade, PathState, Ray};
+
+/// Seed of the light samples of benchmark shadow rays.
+const SEED: u32 = 1;
+
+pub fn primary(scene: &Scene, size: u32) -> Vec<Ray> {
+    let cam = scene.camera.to_pod(size, size);
+    (0..size * size).map(|i| camera::primary_ray(&cam, i)).collect()
+}
+
+/// Rays of every bounce 0..=max_bounces of the renderer's paths (bounce 0: primary rays;
+/// bounce n: rays of paths reflected n times by mirrors), and the shadow rays of bounce 0.
+pub fn bounces(scene: &Scene, tree: &KdTreeData, size: u32, max_bounces: u32) -> Result<(Vec<Vec<Ray>>, Vec<Ray>)> {
+    let cpu = CpuTracer::new(scene, Some(tree));
+    let lights = scene.lights();
+    let mut rays = primary(scene, size);
+    let mut pixels: Vec<u32> = (0..rays.len() as u32).collect();
+    let mut paths = vec![PathState::START; rays.len()];
+    let mut out = vec![rays.clone()];
+    let mut shadow = Vec::new();
+    for bounce in 0..=max_bounces {
+        let hits = cpu.closest_hits(Accel::Kd(Algorithm::Stack), &rays)?;
+        let mut next = (Vec::new(), Vec::new(), Vec::new());
+        for (k, (ray, hit)) in rays.iter().zip(&hits).enumerate() {
+            let mut ray = *ray;
+            let mut path = paths[k];
+            let (s, _) = shade::path_step(
+                SEED, pixels[k], bounce, max_bounces, &mut ray, hit, &mut path,
+                &scene.triangles, &scene.materials, &lights, lights.len() as u32,
+            );
+            if bounce == 0 && s.is_valid() {
+                shadow.push(s);
+            }
+            if path.active != 0 {
+                next.0.push(ray);
+                next.1.push(pixels[k]);
+                next.2.push(path);
+            }
+        }
+        (rays, pixels, paths) = next;
+        if bounce < max_bounces {
+            out.push(rays.clone());
+        }
+    }
+    Ok((out, shadow))
+}

@@ -1,0 +1,544 @@
+//! The benchmark suites: each reproduces one table or figure of the papers this project comes
+//! from, on whatever device it runs, and writes `<suite>-<gpu|cpu>.{csv,md}` and its plots.
+use super::plot::{bar_chart, line_chart, BarChart, LineChart, Series};
+use super::table::{markdown, write_cells, write_rows, Row};
+use super::{answers, device_line, dump, mismatch, rays, Bed, RaySet};
+use crate::gpu::kernels::Kernel;
+use crate::gpu::{median, Gpu};
+use crate::kdtree::{self, BuildOptions, KdTreeData};
+use crate::scene::{self, Scene};
+use crate::trace::Accel;
+use crate::Tracer;
+use anyhow::{bail, Result};
+use indicatif::ProgressBar;
+use kdray_shared::kdtree::Algorithm;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+pub const SUITES: &[&str] = &["horn", "bounces", "scaling", "breakdown", "build", "visits", "traversals"];
+
+/// What every suite needs.
+pub struct Options<'g> {
+    pub gpu: Option<&'g Gpu>,
+    /// Scenes instead of the suite's own list (`scaling` always measures `chairs:K`).
+    pub scenes: Option<Vec<String>>,
+    pub size: u32,
+    pub reps: usize,
+    pub build: BuildOptions,
+    pub out: PathBuf,
+    /// Also write every ray batch measured with its answers (see `dump`).
+    pub dump_rays: Option<PathBuf>,
+    /// Largest K of `chairs:K` in `scaling`.
+    pub max_chairs: u32,
+    pub progress: ProgressBar,
+}
+
+/// Scenes and their trees, built once per run.
+#[derive(Default)]
+pub struct Scenes {
+    loaded: HashMap<String, (Scene, KdTreeData)>,
+}
+
+impl Scenes {
+    pub fn get(&mut self, spec: &str, opts: &BuildOptions) -> Result<&(Scene, KdTreeData)> {
+        if !self.loaded.contains_key(spec) {
+            let s = scene::load(spec)?;
+            let t = kdtree::build(&s.triangles, opts);
+            self.loaded.insert(spec.to_string(), (s, t));
+        }
+        Ok(&self.loaded[spec])
+    }
+}
+
+/// The Stanford bunny from the shared scenes folder (`KDRAY_SHARED_SCENES`, else
+/// `../shared/scenes`), or `chairs:64` with a message when it is absent.
+fn bunny_or_chairs() -> String {
+    let dir = std::env::var("KDRAY_SHARED_SCENES").unwrap_or_else(|_| "../shared/scenes".into());
+    let p = Path::new(&dir).join("stanford-bunny.obj");
+    if p.exists() {
+        p.display().to_string()
+    } else {
+        eprintln!("note: {} not present: chairs:64 instead of the Stanford bunny", p.display());
+        "chairs:64".into()
+    }
+}
+
+/// Horn et al.'s four scenes: Cornell box, Cornell box with a chair, conference room, bunny.
+fn horn_scenes(o: &Options) -> Vec<String> {
+    o.scenes.clone().unwrap_or_else(|| vec!["cornell".into(), "cornell-chair".into(), "conference".into(), bunny_or_chairs()])
+}
+
+/// Runs `suite` (or every suite for `all`); returns the files written.
+pub fn run_suite(suite: &str, o: &Options) -> Result<Vec<PathBuf>> {
+    let mut scenes = Scenes::default();
+    let list: Vec<&str> = if suite == "all" { SUITES.to_vec() } else { vec![suite] };
+    let mut files = Vec::new();
+    for s in list {
+        let start = std::time::Instant::now();
+        let written = match s {
+            "horn" => horn(o, &mut scenes)?,
+            "bounces" => bounces(o, &mut scenes)?,
+            "scaling" => scaling(o, &mut scenes)?,
+            "breakdown" => breakdown(o, &mut scenes)?,
+            "build" => build(o, &mut scenes)?,
+            "visits" => visits(o, &mut scenes)?,
+            "traversals" => traversals(o, &mut scenes)?,
+            _ => bail!("unknown bench suite '{s}' (known: {}, all)", SUITES.join(", ")),
+        };
+        println!("suite {s}: {:.1} s", start.elapsed().as_secs_f64());
+        files.extend(written);
+    }
+    Ok(files)
+}
+
+/// The adapter's name (or the CPU) for plot titles.
+fn short_device(o: &Options) -> String {
+    match o.gpu {
+        Some(g) => g.info.name.clone(),
+        None => format!("CPU, {} threads", rayon::current_num_threads()),
+    }
+}
+
+fn dev(o: &Options) -> &'static str {
+    if o.gpu.is_some() { "gpu" } else { "cpu" }
+}
+
+/// Writes the rows and summary of a suite; returns the two table files.
+fn finish(o: &Options, suite: &str, title: &str, summary: &str, rows: &[Row]) -> Result<Vec<PathBuf>> {
+    let name = format!("{suite}-{}", dev(o));
+    write_rows(&o.out, &name, title, &device_line(o.gpu), summary, rows)?;
+    Ok(vec![o.out.join(format!("{name}.csv")), o.out.join(format!("{name}.md"))])
+}
+
+/// Saves a plot next to the tables; a missing font costs the plot, not the run.
+fn plot(o: &Options, files: &mut Vec<PathBuf>, name: &str, draw: impl FnOnce(&Path) -> Result<()>) {
+    let path = o.out.join(format!("{name}-{}.png", dev(o)));
+    match draw(&path) {
+        Ok(()) => files.push(path),
+        Err(e) => eprintln!("warning: no plot {}: {e:#}", path.display()),
+    }
+}
+
+/// The primary rays (closest hit) and shadow rays (any hit) of a scene, dumped if asked.
+fn primary_and_shadow(o: &Options, bed: &Bed) -> Result<(RaySet, RaySet)> {
+    let (b, shadow) = rays::bounces(bed.scene, bed.tree, o.size, 0)?;
+    let primary = bed.ray_set("primary", b.into_iter().next().unwrap_or_default(), true)?;
+    let shadow = bed.ray_set("shadow", shadow, false)?;
+    for set in [&primary, &shadow] {
+        dump_set(o, bed, set)?;
+    }
+    Ok((primary, shadow))
+}
+
+fn dump_set(o: &Options, bed: &Bed, set: &RaySet) -> Result<()> {
+    let Some(dir) = &o.dump_rays else { return Ok(()) };
+    let accel = Accel::Kd(Algorithm::Stack);
+    if set.closest {
+        dump::write_batch(dir, bed.scene, &set.kind, &set.rays, Some(&bed.cpu.closest_hits(accel, &set.rays)?), None)
+    } else {
+        dump::write_batch(dir, bed.scene, &set.kind, &set.rays, None, Some(&bed.cpu.any_hits(accel, &set.rays)?))
+    }
+}
+
+const HORN_ROWS: [(&str, Accel); 7] = [
+    ("full stack (baseline)", Accel::Kd(Algorithm::Stack)),
+    ("kd-restart", Accel::Kd(Algorithm::Restart)),
+    ("+ packets", Accel::Packet(Algorithm::Restart)),
+    ("+ push-down", Accel::Packet(Algorithm::PushDown)),
+    ("+ short-stack (3)", Accel::Packet(Algorithm::ShortStack(3))),
+    ("push-down, single rays", Accel::Kd(Algorithm::PushDown)),
+    ("short-stack (3), single rays", Accel::Kd(Algorithm::ShortStack(3))),
+];
+
+/// Horn et al. 2007, Table 1: Mrays/s of the cumulative variants for primary (PS) and shadow
+/// (SS) rays on four scenes.
+fn horn(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
+    let specs = horn_scenes(o);
+    o.progress.set_length((specs.len() * HORN_ROWS.len() * 2) as u64);
+    let mut rows = Vec::new();
+    let mut names = Vec::new();
+    for spec in &specs {
+        let (scene, tree) = scenes.get(spec, &o.build)?;
+        names.push(scene.name.clone());
+        let bed = Bed::new(scene, tree, o.gpu, o.size, o.reps)?;
+        let (primary, shadow) = primary_and_shadow(o, &bed)?;
+        for set in [&primary, &shadow] {
+            for (_, accel) in HORN_ROWS {
+                rows.push(bed.measure(set, accel)?);
+                o.progress.inc(1);
+            }
+        }
+    }
+    let find = |scene: &str, kind: &str, m: &str| rows.iter().find(|r| r.scene == scene && r.ray_type == kind && r.method == m);
+    let mut header = vec!["Mrays/s".to_string()];
+    for n in &names {
+        header.push(format!("{n} PS"));
+        header.push(format!("{n} SS"));
+    }
+    let cells: Vec<Vec<String>> = HORN_ROWS
+        .iter()
+        .map(|(label, accel)| {
+            let mut r = vec![format!("{label} (`{}`)", accel.name())];
+            for n in &names {
+                for kind in ["primary", "shadow"] {
+                    r.push(find(n, kind, &accel.name()).map(|x| format!("{:.1}", x.mrays())).unwrap_or_default());
+                }
+            }
+            r
+        })
+        .collect();
+    let summary = format!(
+        "## Horn et al. 2007, Table 1 layout\n\nPS = primary rays (closest hit), SS = shadow rays (any hit), {}² pixels; Mrays/s from GPU time where available. \
+         Horn's rows are cumulative: kd-restart, then packets of four, then push-down, then a short stack of 3.\n\n{}",
+        o.size,
+        markdown(&header, &cells)
+    );
+    let mut files = finish(o, "horn", "Horn et al. Table 1: kd-restart, packets, push-down, short-stack", &summary, &rows)?;
+    plot(o, &mut files, "horn", |p| {
+        let categories: Vec<String> = names.iter().flat_map(|n| [format!("{n} PS"), format!("{n} SS")]).collect();
+        let series = HORN_ROWS
+            .iter()
+            .map(|(label, accel)| {
+                let v = names.iter().flat_map(|n| ["primary", "shadow"].map(|k| find(n, k, &accel.name()).map(|x| x.mrays()).unwrap_or(0.0))).collect();
+                (label.to_string(), v)
+            })
+            .collect();
+        bar_chart(p, &BarChart { title: format!("Mrays/s, {}² ({})", o.size, short_device(o)), y_label: "Mrays/s".into(), categories, series, stacked: false })
+    });
+    Ok(files)
+}
+
+/// Horn et al.'s Diagram 1: Mrays/s of the rays of the n-th mirror reflection, with and without
+/// packets (coherence falls bounce after bounce).
+fn bounces(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
+    const MAX: u32 = 4;
+    let methods = [Accel::Kd(Algorithm::ShortStack(3)), Accel::Packet(Algorithm::ShortStack(3)), Accel::Kd(Algorithm::Stack), Accel::Packet(Algorithm::Stack)];
+    let specs = o.scenes.clone().unwrap_or_else(|| vec!["cornell-mirrors".into()]);
+    o.progress.set_length((specs.len() * (MAX as usize + 1) * methods.len()) as u64);
+    let mut rows = Vec::new();
+    let mut summary = String::from("## Rays of the n-th reflection\n\nBounce 0 = primary rays; bounce n = the reflected rays of the paths still bouncing after n mirror hits (closest hit).\n\n");
+    let mut curves: Vec<Series> = Vec::new();
+    for spec in &specs {
+        let (scene, tree) = scenes.get(spec, &o.build)?;
+        let bed = Bed::new(scene, tree, o.gpu, o.size, o.reps)?;
+        let (sets, _) = rays::bounces(scene, tree, o.size, MAX)?;
+        let mut header = vec!["bounce".to_string(), "rays".into(), "coherent packets".into()];
+        header.extend(methods.iter().map(|m| format!("`{}` Mrays/s", m.name())));
+        let mut cells = Vec::new();
+        let mut points = vec![Vec::new(); methods.len()];
+        for (n, r) in sets.into_iter().enumerate() {
+            if r.is_empty() {
+                break;
+            }
+            let set = bed.ray_set(format!("reflection {n}"), r, true)?;
+            dump_set(o, &bed, &set)?;
+            let coherent = bed.cpu.coherent_packets(&set.rays)? as f64 / set.rays.len().div_ceil(4) as f64;
+            let mut line = vec![n.to_string(), set.rays.len().to_string(), format!("{:.1} %", 100.0 * coherent)];
+            for (m, accel) in methods.iter().enumerate() {
+                let row = bed.measure(&set, *accel)?;
+                line.push(format!("{:.1}", row.mrays()));
+                points[m].push((n as f64, row.mrays()));
+                rows.push(row);
+                o.progress.inc(1);
+            }
+            cells.push(line);
+        }
+        summary += &format!("### {}\n\n{}\n", scene.name, markdown(&header, &cells));
+        for (m, accel) in methods.iter().enumerate() {
+            curves.push(Series { name: format!("{} {}", scene.name, accel.name()), points: points[m].clone(), dashed: matches!(accel, Accel::Kd(_)) });
+        }
+    }
+    let mut files = finish(o, "bounces", "Reflection rays with and without packets (Horn et al., Diagram 1)", &summary, &rows)?;
+    plot(o, &mut files, "bounces", |p| {
+        line_chart(p, &LineChart { title: format!("Reflection rays, {}² ({})", o.size, short_device(o)), x_label: "bounce".into(), y_label: "Mrays/s".into(), x_log: false, y_log: false, series: curves })
+    });
+    Ok(files)
+}
+
+/// The photon-mapping paper's Fig. 7: primary-ray speed against scene size on `chairs:K`, with
+/// c/log N and c/log² N through the first point; build time and memory per N.
+fn scaling(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
+    let methods = [Accel::Kd(Algorithm::Stack), Accel::Kd(Algorithm::ShortStack(3))];
+    let ks: Vec<u32> = std::iter::successors(Some(1u32), |k| Some(k * 4)).take_while(|k| *k <= o.max_chairs).collect();
+    o.progress.set_length((ks.len() * methods.len()) as u64);
+    let mut rows = Vec::new();
+    let mut cells = Vec::new();
+    let mut points = vec![Vec::new(); methods.len()];
+    for k in &ks {
+        let spec = format!("chairs:{k}");
+        let (scene, tree) = scenes.get(&spec, &o.build)?;
+        let bed = Bed::new(scene, tree, o.gpu, o.size, o.reps)?;
+        let (primary, _) = primary_and_shadow(o, &bed)?;
+        let n = scene.triangles.len() as f64;
+        let mut line = vec![
+            k.to_string(),
+            scene.triangles.len().to_string(),
+            format!("{:.3}", tree.stats.build_seconds),
+            format!("{:.1}", tree.stats.bytes as f64 / 1048576.0),
+        ];
+        for (m, accel) in methods.iter().enumerate() {
+            let row = bed.measure(&primary, *accel)?;
+            line.push(format!("{:.1}", row.mrays()));
+            points[m].push((n, row.mrays()));
+            rows.push(row);
+            o.progress.inc(1);
+        }
+        cells.push(line);
+    }
+    // Fits through the first point of the short-stack curve: c / log N and c / log² N.
+    let ss = &points[1];
+    let mut series: Vec<Series> = methods.iter().zip(&points).map(|(a, p)| Series { name: a.name(), points: p.clone(), dashed: false }).collect();
+    if let Some(&(n0, v0)) = ss.first() {
+        let fit = |p: i32| ss.iter().map(|&(n, _)| (n, v0 * (n0.ln() / n.ln()).powi(p))).collect::<Vec<_>>();
+        for (line, (n, _)) in cells.iter_mut().zip(ss) {
+            line.push(format!("{:.1}", v0 * n0.ln() / n.ln()));
+            line.push(format!("{:.1}", v0 * (n0.ln() / n.ln()).powi(2)));
+        }
+        series.push(Series { name: "c / log N".into(), points: fit(1), dashed: true });
+        series.push(Series { name: "c / log² N".into(), points: fit(2), dashed: true });
+    }
+    let header: Vec<String> = ["K chairs", "triangles", "build s", "tree MiB", "`stack` Mrays/s", "`shortstack:3` Mrays/s", "c / log N", "c / log² N"].map(String::from).to_vec();
+    let summary = format!(
+        "## Primary rays against scene size\n\n`chairs:K` (K chairs of 1 468 triangles and a floor), {}² primary rays. The fitted curves pass through the first short-stack point.\n\n{}",
+        o.size,
+        markdown(&header, &cells)
+    );
+    let mut files = finish(o, "scaling", "Speed against scene size (chairs:K)", &summary, &rows)?;
+    plot(o, &mut files, "scaling", |p| {
+        line_chart(p, &LineChart { title: format!("Primary rays, {}² ({})", o.size, short_device(o)), x_label: "triangles".into(), y_label: "Mrays/s".into(), x_log: true, y_log: false, series })
+    });
+    Ok(files)
+}
+
+/// Where a kernel's time goes in the breakdown.
+fn stage(k: Kernel) -> &'static str {
+    match k {
+        Kernel::TraverseLeaves => "traverse",
+        Kernel::IntersectLeaves { .. } => "intersect",
+        Kernel::Fallback { .. } => "fallback",
+        Kernel::Closest(_) | Kernel::Any(_) => "trace",
+        _ => "shade",
+    }
+}
+
+const STAGES: [&str; 5] = ["traverse", "intersect", "fallback", "trace", "shade"];
+
+/// Frolov & Ignatenko's split: share of a frame's GPU time in traverse / intersect / shade for
+/// the decomposed pipeline, next to the monolithic short-stack kernels, with the image
+/// difference between the two (0 expected), fallback rays and leaf-list memory.
+fn breakdown(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
+    let decomposed = Accel::Decomposed { capacity: crate::trace::DEFAULT_LEAF_CAPACITY };
+    let monolithic = Accel::Kd(Algorithm::ShortStack(3));
+    let mut specs = horn_scenes(o);
+    if o.scenes.is_none() {
+        specs.push("chairs:1024".into());
+    }
+    o.progress.set_length((specs.len() * 4) as u64);
+    let mut rows = Vec::new();
+    let mut cells = Vec::new();
+    let mut shares: Vec<(String, [f64; 5])> = Vec::new();
+    for spec in &specs {
+        let (scene, tree) = scenes.get(spec, &o.build)?;
+        let bed = Bed::new(scene, tree, o.gpu, o.size, o.reps)?;
+        let (primary, shadow) = primary_and_shadow(o, &bed)?;
+        for set in [&primary, &shadow] {
+            for accel in [decomposed, monolithic] {
+                rows.push(bed.measure(set, accel)?);
+                o.progress.inc(1);
+            }
+        }
+        let cam = scene.camera.to_pod(o.size, o.size);
+        let pb = ProgressBar::hidden();
+        let a = bed.tracer().render(decomposed, &cam, 1, 4, &pb)?;
+        let b = bed.tracer().render(monolithic, &cam, 1, 4, &pb)?;
+        let differ = a.radiance.iter().zip(&b.radiance).zip(a.hits.iter().zip(&b.hits)).filter(|((x, y), (h, k))| x != y || h.prim != k.prim).count();
+        let fallbacks = bed.cpu.decomposed_fallbacks(&primary.rays, 16, true)? + bed.cpu.decomposed_fallbacks(&shadow.rays, 16, false)?;
+        let list_mib = (primary.rays.len() * 16 * std::mem::size_of::<kdray_shared::kdtree::LeafRef>()) as f64 / 1048576.0;
+        let Some(g) = &bed.gpu else {
+            cells.push(vec![scene.name.clone(), scene.triangles.len().to_string(), "–".into(), "–".into(), "–".into(), "–".into(), "–".into(), "–".into(), "–".into(), fallbacks.to_string(), format!("{list_mib:.1}"), differ.to_string()]);
+            continue;
+        };
+        for accel in [decomposed, monolithic] {
+            let (kernels, t) = g.time_frame(accel, &cam, 1, 4, o.reps)?;
+            let mut ms = [0.0f64; 5];
+            for (k, part) in kernels.iter().zip(&t.parts_ms) {
+                let i = STAGES.iter().position(|s| *s == stage(*k)).expect("known stage");
+                ms[i] += median(part).unwrap_or(0.0);
+            }
+            let total: f64 = ms.iter().sum();
+            let pct = |i: usize| if total > 0.0 { format!("{:.0} %", 100.0 * ms[i] / total) } else { "–".into() };
+            cells.push(vec![
+                scene.name.clone(),
+                scene.triangles.len().to_string(),
+                format!("`{}`", accel.name()),
+                format!("{total:.2}"),
+                pct(0),
+                pct(1),
+                pct(2),
+                pct(3),
+                pct(4),
+                if accel == decomposed { fallbacks.to_string() } else { "–".into() },
+                if accel == decomposed { format!("{list_mib:.1}") } else { "–".into() },
+                differ.to_string(),
+            ]);
+            if accel == decomposed && total > 0.0 {
+                shares.push((scene.name.clone(), ms.map(|x| 100.0 * x / total)));
+            }
+        }
+    }
+    let header: Vec<String> = ["scene", "triangles", "pipeline", "frame GPU ms", "traverse", "intersect", "fallback", "trace (monolithic)", "shade", "fallback rays", "leaf lists MiB", "pixels differing"].map(String::from).to_vec();
+    let summary = format!(
+        "## Time per stage of a frame\n\nOne {}² frame as `render` traces it (primary rays, mirror bounces where the scene has mirrors, one shadow ray per pixel), GPU time per pass from timestamp queries, summed per stage \
+         (shade = camera rays, path step and accumulation). The decomposed pipeline lists up to 16 leaves per ray; rays whose list overflows before their answer is settled are finished by the full-stack kernel (fallback). \
+         Pixels differing: hit id or radiance different from the monolithic render (0 expected). Frolov & Ignatenko measured 15 % / 74 % / 11 % (traverse / intersect / shade) on their conference scene and 46 % / 45 % traverse / intersect on 1.5 M triangles.\n\n{}",
+        o.size,
+        markdown(&header, &cells)
+    );
+    let mut files = finish(o, "breakdown", "Decomposed pipeline: traverse / intersect / shade", &summary, &rows)?;
+    if !shares.is_empty() {
+        plot(o, &mut files, "breakdown", |p| {
+            let series = [0usize, 1, 2, 4].iter().map(|&i| (STAGES[i].to_string(), shares.iter().map(|s| s.1[i]).collect())).collect();
+            bar_chart(p, &BarChart { title: format!("Decomposed pipeline, share of frame time ({})", short_device(o)), y_label: "% of frame GPU time".into(), categories: shares.iter().map(|s| s.0.clone()).collect(), series, stacked: true })
+        });
+    }
+    Ok(files)
+}
+
+/// kd-tree build statistics per scene.
+fn build(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
+    let mut specs = horn_scenes(o);
+    if o.scenes.is_none() {
+        specs.extend(["chairs:64".to_string(), "chairs:1024".to_string()]);
+    }
+    o.progress.set_length(specs.len() as u64);
+    let header: Vec<String> = ["scene", "triangles", "build s", "s per M triangles", "nodes", "leaves", "empty leaves", "triangles/leaf", "depth", "SAH cost", "MiB", "oracle mismatch"].map(String::from).to_vec();
+    let mut cells = Vec::new();
+    let mut bars = Vec::new();
+    for spec in &specs {
+        let (scene, tree) = scenes.get(spec, &o.build)?;
+        let s = &tree.stats;
+        // The tree answers like the oracle (a sample of primary rays, full stack, natively).
+        let bed = Bed::new(scene, tree, None, 64, 1)?;
+        let set = bed.ray_set("primary", rays::primary(scene, 64), true)?;
+        let got = answers(&bed.cpu, Accel::Kd(Algorithm::Stack), &set.sample, true)?;
+        let per_m = s.build_seconds / (scene.triangles.len() as f64 / 1e6);
+        cells.push(vec![
+            scene.name.clone(),
+            scene.triangles.len().to_string(),
+            format!("{:.3}", s.build_seconds),
+            format!("{per_m:.2}"),
+            s.nodes.to_string(),
+            s.leaves.to_string(),
+            s.empty_leaves.to_string(),
+            format!("{:.2}", s.avg_leaf_size),
+            s.max_depth.to_string(),
+            format!("{:.1}", s.sah_cost),
+            format!("{:.2}", s.bytes as f64 / 1048576.0),
+            format!("{:.1e}", mismatch(&got, &set.oracle)),
+        ]);
+        bars.push((scene.name.clone(), per_m));
+        o.progress.inc(1);
+    }
+    let name = format!("build-{}", dev(o));
+    write_cells(&o.out, &name, "kd-tree build (SAH, Wald & Havran O(N log N))", &device_line(None), &header, &cells)?;
+    let mut files = vec![o.out.join(format!("{name}.csv")), o.out.join(format!("{name}.md"))];
+    plot(o, &mut files, "build", |p| {
+        bar_chart(p, &BarChart { title: format!("kd-tree build time per million triangles ({})", super::machine()), y_label: "s per 10^6 triangles".into(), categories: bars.iter().map(|b| b.0.clone()).collect(), series: vec![("build".into(), bars.iter().map(|b| b.1).collect())], stacked: false })
+    });
+    Ok(files)
+}
+
+/// Node visits per ray of every traversal relative to the full stack (Horn: kd-restart
+/// +166 %, short-stack(1) +25 %, short-stack(3) +3 %). Counted natively: the counts are a
+/// property of the algorithm, identical on every device.
+fn visits(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
+    let mut algs = vec![Algorithm::Stack, Algorithm::Restart, Algorithm::PushDown];
+    algs.extend((1..=kdray_shared::kdtree::MAX_SHORT_STACK).map(Algorithm::ShortStack));
+    let specs = horn_scenes(o);
+    o.progress.set_length((specs.len() * 2) as u64);
+    let header: Vec<String> = ["scene", "ray type", "traversal", "nodes/ray", "vs stack", "leaves/ray", "tris/ray", "restarts/ray", "oracle mismatch"].map(String::from).to_vec();
+    let mut cells = Vec::new();
+    let mut series = Vec::new();
+    let mut summary_cells: Vec<Vec<String>> = algs.iter().map(|a| vec![format!("`{}`", Accel::Kd(*a).name())]).collect();
+    let mut names = Vec::new();
+    for spec in &specs {
+        let (scene, tree) = scenes.get(spec, &o.build)?;
+        names.push(scene.name.clone());
+        let bed = Bed::new(scene, tree, None, o.size, 1)?;
+        let (primary, shadow) = primary_and_shadow(o, &bed)?;
+        for set in [&primary, &shadow] {
+            let mut stack_nodes = 0.0;
+            let mut curve = Vec::new();
+            for (i, alg) in algs.iter().enumerate() {
+                let accel = Accel::Kd(*alg);
+                let c = bed.cpu.count(accel, &set.rays, set.closest)?;
+                let n = set.rays.len().max(1) as f64;
+                let sum = |f: fn(&kdray_shared::kdtree::Counters) -> u32| c.iter().map(|x| f(x) as f64).sum::<f64>() / n;
+                let nodes = sum(|x| x.nodes);
+                if *alg == Algorithm::Stack {
+                    stack_nodes = nodes;
+                }
+                let vs = nodes / stack_nodes - 1.0;
+                let sample = answers(&bed.cpu, accel, &set.sample, set.closest)?;
+                cells.push(vec![
+                    scene.name.clone(),
+                    set.kind.clone(),
+                    accel.name(),
+                    format!("{nodes:.2}"),
+                    format!("{:+.1} %", 100.0 * vs),
+                    format!("{:.2}", sum(|x| x.leaves)),
+                    format!("{:.2}", sum(|x| x.tris)),
+                    format!("{:.3}", sum(|x| x.restarts)),
+                    format!("{:.1e}", mismatch(&sample, &set.oracle)),
+                ]);
+                if set.closest {
+                    summary_cells[i].push(format!("{:+.1} %", 100.0 * vs));
+                }
+                if let Algorithm::ShortStack(k) = alg {
+                    curve.push((*k as f64, 100.0 * vs));
+                }
+            }
+            if set.closest {
+                series.push(Series { name: scene.name.clone(), points: curve, dashed: false });
+            }
+            o.progress.inc(1);
+        }
+    }
+    let mut sh = vec!["primary rays".to_string()];
+    sh.extend(names.iter().cloned());
+    let name = format!("visits-{}", dev(o));
+    let title = "Node visits relative to the full stack (Horn et al.: kd-restart +166 %, short-stack(1) +25 %, short-stack(3) +3 %)";
+    write_cells(&o.out, &name, title, "native counting run (device independent)", &header, &cells)?;
+    let md_path = o.out.join(format!("{name}.md"));
+    let body = std::fs::read_to_string(&md_path)?;
+    std::fs::write(&md_path, body.replacen("\n\n|", &format!("\n\n## Summary ({}² primary rays)\n\n{}\n## All rows\n\n|", o.size, markdown(&sh, &summary_cells)), 1))?;
+    let mut files = vec![o.out.join(format!("{name}.csv")), md_path];
+    plot(o, &mut files, "visits", |p| {
+        line_chart(p, &LineChart { title: "Short-stack size against extra node visits (primary rays)".into(), x_label: "short-stack entries".into(), y_label: "% more node visits than the full stack".into(), x_log: false, y_log: false, series })
+    });
+    Ok(files)
+}
+
+/// Every traversal with a GPU kernel, primary and shadow rays, per scene.
+fn traversals(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
+    let specs = horn_scenes(o);
+    let accels: Vec<Accel> = Accel::all().into_iter().skip(1).collect();
+    o.progress.set_length((specs.len() * accels.len() * 2) as u64);
+    let mut rows = Vec::new();
+    for spec in &specs {
+        let (scene, tree) = scenes.get(spec, &o.build)?;
+        let bed = Bed::new(scene, tree, o.gpu, o.size, o.reps)?;
+        let (primary, shadow) = primary_and_shadow(o, &bed)?;
+        for set in [&primary, &shadow] {
+            let mut stack_nodes = None;
+            for accel in &accels {
+                let mut row = bed.measure(set, *accel)?;
+                let base = *stack_nodes.get_or_insert(row.nodes);
+                row.vs_stack = Some(row.nodes / base - 1.0);
+                rows.push(row);
+                o.progress.inc(1);
+            }
+        }
+    }
+    finish(o, "traversals", "Every kd traversal", "", &rows)
+}

@@ -1,0 +1,150 @@
+//! The kd-tree as both sides see it (8-byte nodes, children adjacent, a primitive index list)
+//! and the traversal family of Foley & Sugerman 2005 and Horn et al. 2007, written once:
+//!
+//! | algorithm | stack | push-down |
+//! |---|---|---|
+//! | full stack (classic) | `FullStack` (never drops) | no |
+//! | kd-restart | `NoStack` | no |
+//! | kd-restart + push-down | `NoStack` | yes |
+//! | push-down + short stack of N | `ShortStack<N>` (drops its oldest entry when full) | yes |
+//!
+//! A traversal that runs out of stacked work after having dropped entries restarts: from the
+//! root, or with push-down from the deepest node whose ray interval was never split since the
+//! last restart, with the interval [t_max of the last leaf, t_max of the scene].
+//!
+//! Rules that keep every variant exact (the papers' pseudocode does not):
+//! * a hit anywhere in the ray's interval is kept as the best so far; the traversal stops only
+//!   once the best hit lies at or before the end of the current leaf, so a hit found in a leaf
+//!   but beyond it (a triangle spanning several cells) never ends the search early;
+//! * every triangle of a leaf is tested and the closest taken;
+//! * the builder never puts a split plane through a vertex (host `kdtree::sah`): a point on a
+//!   plane belongs only to triangles that straddle it, which are in both children, so a ray
+//!   lying in a split plane (direction component ±0), or starting, entering or ending exactly on
+//!   one, needs only one of the two children: zero-length intervals are never visited, and a
+//!   restart always makes progress;
+//! * rays that `Ray::is_valid` rejects are misses, and every loop is bounded by the tree size.
+//!
+//! Modules: `single` (the one-ray traversal above), `packet` (four rays at once with lane
+//! masks, the same decisions per lane), `leaf_list` (the decomposed pipeline's leaf lists),
+//! `query` (closest / any hit at a leaf), `stack` (no stack, short stack, full stack).
+mod leaf_list;
+mod packet;
+mod query;
+mod single;
+mod stack;
+
+pub use leaf_list::{intersect_leaves, record_leaves, LeafList, LeafRef, LEAF_OVERFLOW, MAX_LEAF_LIST};
+pub use packet::{packet_or_single, run_packet, traverse_packet, PacketEntry, PACKET};
+pub use query::{AnyHit, Closest, Query, Visitor};
+pub use single::{any_hit, closest_hit, run, traverse, Algorithm, MAX_SHORT_STACK};
+pub use stack::{Entry, FullStack, NoStack, ShortStack, Stack};
+
+use crate::aabb::Aabb;
+use crate::pod::Triangle;
+use bytemuck::{Pod, Zeroable};
+
+/// Deepest tree the builder produces; also the capacity of `FullStack`.
+pub const MAX_DEPTH: usize = 48;
+const LEAF: u32 = 3;
+
+/// Interior: `a` = split position (f32 bits), `b` = first child index << 2 | axis; the children
+/// are adjacent (below = first, above = first + 1). Leaf: `a` = offset into the primitive index
+/// list, `b` = primitive count << 2 | 3.
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
+pub struct KdNode {
+    pub a: u32,
+    pub b: u32,
+}
+
+impl KdNode {
+    pub fn interior(axis: u32, split: f32, first_child: u32) -> Self {
+        KdNode { a: split.to_bits(), b: (first_child << 2) | axis }
+    }
+    pub fn leaf(offset: u32, count: u32) -> Self {
+        KdNode { a: offset, b: (count << 2) | LEAF }
+    }
+    #[inline(always)]
+    pub fn is_leaf(&self) -> bool {
+        self.b & 3 == LEAF
+    }
+    #[inline(always)]
+    pub fn axis(&self) -> usize {
+        (self.b & 3) as usize
+    }
+    #[inline(always)]
+    pub fn split(&self) -> f32 {
+        f32::from_bits(self.a)
+    }
+    #[inline(always)]
+    pub fn first_child(&self) -> u32 {
+        self.b >> 2
+    }
+    #[inline(always)]
+    pub fn prim_offset(&self) -> u32 {
+        self.a
+    }
+    #[inline(always)]
+    pub fn prim_count(&self) -> u32 {
+        self.b >> 2
+    }
+}
+
+/// The tree over `tris`: `nodes[0]` is the root, `bounds` the scene box.
+#[derive(Copy, Clone)]
+pub struct KdTree<'a> {
+    pub nodes: &'a [KdNode],
+    pub prims: &'a [u32],
+    pub tris: &'a [Triangle],
+    pub bounds: Aabb,
+}
+
+/// Traversal cost counters; `NoStats` compiles to nothing.
+pub trait Stats {
+    fn node(&mut self);
+    fn leaf(&mut self);
+    fn tri(&mut self);
+    fn restart(&mut self);
+}
+
+pub struct NoStats;
+impl Stats for NoStats {
+    #[inline(always)]
+    fn node(&mut self) {}
+    #[inline(always)]
+    fn leaf(&mut self) {}
+    #[inline(always)]
+    fn tri(&mut self) {}
+    #[inline(always)]
+    fn restart(&mut self) {}
+}
+
+/// Per-ray counts: nodes visited (interior and leaf), leaves visited, triangles tested,
+/// restarts. Also the GPU buffer layout of the counting kernels.
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
+pub struct Counters {
+    pub nodes: u32,
+    pub leaves: u32,
+    pub tris: u32,
+    pub restarts: u32,
+}
+impl Stats for Counters {
+    #[inline(always)]
+    fn node(&mut self) {
+        self.nodes += 1;
+    }
+    #[inline(always)]
+    fn leaf(&mut self) {
+        self.leaves += 1;
+    }
+    #[inline(always)]
+    fn tri(&mut self) {
+        self.tris += 1;
+    }
+    #[inline(always)]
+    fn restart(&mut self) {
+        self.restarts += 1;
+    }
+}
+

@@ -1,0 +1,106 @@
+//! What a traversal does at a leaf. `Visitor` is what the traversal calls; every `Query`
+//! (closest hit, any hit) is a visitor that tests the leaf's triangles one by one, and the
+//! decomposed pipeline's leaf recorder (`leaf_list`) is a visitor that tests nothing.
+use super::{KdNode, KdTree, Stats};
+use crate::pod::{Hit, Triangle};
+use crate::ray::Ray;
+use crate::triangle::{intersect_triangle, ShearedRay};
+
+/// Called by the traversals for each leaf whose cell the ray's interval overlaps.
+pub trait Visitor {
+    /// The leaf `node` covers the ray's interval up to `t_far`.
+    fn leaf<S: Stats>(&mut self, tree: &KdTree, node: KdNode, r: &ShearedRay, t_min: f32, t_far: f32, stats: &mut S);
+    /// Whether nothing beyond `t` (the end of the leaf just visited) can change the answer.
+    fn done(&self, t: f32) -> bool;
+}
+
+/// A hit query, one triangle at a time (the packet traversal fetches each triangle once and
+/// offers it to every active ray of the packet).
+pub trait Query {
+    /// Tests triangle `prim`.
+    fn test<S: Stats>(&mut self, prim: u32, tri: &Triangle, r: &ShearedRay, t_min: f32, stats: &mut S);
+    /// Whether a further triangle can still change the answer.
+    fn open(&self) -> bool;
+    /// Whether nothing beyond `t` can change the answer.
+    fn finished(&self, t: f32) -> bool;
+}
+
+impl<Q: Query> Visitor for Q {
+    #[inline(always)]
+    fn leaf<S: Stats>(&mut self, tree: &KdTree, node: KdNode, r: &ShearedRay, t_min: f32, _t_far: f32, stats: &mut S) {
+        let off = node.prim_offset() as usize;
+        let n = node.prim_count() as usize;
+        let mut j = 0;
+        while j < n && self.open() {
+            let p = tree.prims[off + j];
+            self.test(p, &tree.tris[p as usize], r, t_min, stats);
+            j += 1;
+        }
+    }
+    #[inline(always)]
+    fn done(&self, t: f32) -> bool {
+        self.finished(t)
+    }
+}
+
+pub struct Closest {
+    pub hit: Hit,
+    pub t_max: f32,
+}
+
+impl Closest {
+    pub fn new(ray: &Ray) -> Self {
+        Closest { hit: Hit::NONE, t_max: ray.t_max }
+    }
+}
+
+impl Query for Closest {
+    #[inline(always)]
+    fn test<S: Stats>(&mut self, p: u32, tri: &Triangle, r: &ShearedRay, t_min: f32, stats: &mut S) {
+        stats.tri();
+        if let Some(h) = intersect_triangle(r, tri.v0, tri.v1, tri.v2, t_min, self.t_max) {
+            // Ties in t keep the lower primitive index, as the brute-force oracle does.
+            if !self.hit.is_hit() || h.t < self.hit.t || (h.t == self.hit.t && p < self.hit.prim) {
+                self.hit = Hit { t: h.t, prim: p, b1: h.b1, b2: h.b2 };
+                self.t_max = h.t;
+            }
+        }
+    }
+    #[inline(always)]
+    fn open(&self) -> bool {
+        true
+    }
+    #[inline(always)]
+    fn finished(&self, t: f32) -> bool {
+        self.hit.is_hit() && self.hit.t <= t
+    }
+}
+
+pub struct AnyHit {
+    pub found: bool,
+    pub t_max: f32,
+}
+
+impl AnyHit {
+    pub fn new(ray: &Ray) -> Self {
+        AnyHit { found: false, t_max: ray.t_max }
+    }
+}
+
+impl Query for AnyHit {
+    #[inline(always)]
+    fn test<S: Stats>(&mut self, _p: u32, tri: &Triangle, r: &ShearedRay, t_min: f32, stats: &mut S) {
+        stats.tri();
+        if intersect_triangle(r, tri.v0, tri.v1, tri.v2, t_min, self.t_max).is_some() {
+            self.found = true;
+        }
+    }
+    #[inline(always)]
+    fn open(&self) -> bool {
+        !self.found
+    }
+    #[inline(always)]
+    fn finished(&self, _t: f32) -> bool {
+        self.found
+    }
+}
