@@ -188,6 +188,7 @@ fn packets_and_decomposed_pipeline_render_the_same_image() {
         assert!(base.hits.iter().filter(|h| h.is_hit()).count() > 8000);
         let mut variants = vec![Accel::Decomposed { capacity: 1 }, Accel::Decomposed { capacity: 16 }];
         variants.extend(kdray::gpu::kernels::GPU_PACKETS.map(Accel::Packet));
+        variants.extend(kdray::gpu::kernels::GPU_PERSISTENT.map(Accel::Persistent));
         for accel in variants {
             let img = t.render(accel, &cam, 5, 4, &pb).unwrap();
             let cmp = compare(&base, &img, 1.0);

@@ -63,7 +63,8 @@ impl<'s> CpuTracer<'s> {
         let mut q = rays.each_ref().map(Q::start);
         match accel {
             Accel::Brute => q.iter_mut().zip(rays).for_each(|(q, r)| q.brute(r, self.tris)),
-            Accel::Kd(alg) => {
+            // Work distribution is the GPU's concern: natively the same traversal.
+            Accel::Kd(alg) | Accel::Persistent(alg) => {
                 let tree = self.tree()?;
                 q.iter_mut().zip(rays).for_each(|(q, r)| kdtree::run(alg, &tree, r, q, stats));
             }

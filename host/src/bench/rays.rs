@@ -17,9 +17,19 @@ pub fn primary(scene: &Scene, size: u32) -> Vec<Ray> {
     (0..size * size).map(|i| camera::primary_ray(&cam, i)).collect()
 }
 
+/// Pixel indices of a `size`² image in Morton (Z-curve) order: groups of 4 are 2×2 quads,
+/// groups of 64 are 8×8 tiles.
+pub fn morton_order(size: u32) -> Vec<u32> {
+    let spread = |v: u32| (0..16).fold(0u64, |m, b| m | (((v as u64 >> b) & 1) << (2 * b)));
+    let mut idx: Vec<u32> = (0..size * size).collect();
+    idx.sort_by_key(|&i| spread(i % size) | (spread(i / size) << 1));
+    idx
+}
+
 /// Rays of every bounce 0..=max_bounces of the renderer's paths (bounce 0: primary rays;
-/// bounce n: rays of paths reflected n times by mirrors), and the shadow rays of bounce 0.
-pub fn bounces(scene: &Scene, tree: &KdTreeData, size: u32, max_bounces: u32) -> Result<(Vec<Vec<Ray>>, Vec<Ray>)> {
+/// bounce n: rays of paths reflected n times by mirrors), the shadow rays of bounce 0 and the
+/// pixel of each shadow ray.
+pub fn bounces(scene: &Scene, tree: &KdTreeData, size: u32, max_bounces: u32) -> Result<(Vec<Vec<Ray>>, Vec<Ray>, Vec<u32>)> {
     let cpu = CpuTracer::new(scene, Some(tree));
     let lights = scene.lights();
     let mut rays = primary(scene, size);
@@ -27,6 +37,7 @@ pub fn bounces(scene: &Scene, tree: &KdTreeData, size: u32, max_bounces: u32) ->
     let mut paths = vec![PathState::START; rays.len()];
     let mut out = vec![rays.clone()];
     let mut shadow = Vec::new();
+    let mut shadow_pixels = Vec::new();
     for bounce in 0..=max_bounces {
         let hits = cpu.closest_hits(Accel::Kd(Algorithm::Stack), &rays)?;
         let mut next = (Vec::new(), Vec::new(), Vec::new());
@@ -39,6 +50,7 @@ pub fn bounces(scene: &Scene, tree: &KdTreeData, size: u32, max_bounces: u32) ->
             );
             if bounce == 0 && s.is_valid() {
                 shadow.push(s);
+                shadow_pixels.push(pixels[k]);
             }
             if path.active != 0 {
                 next.0.push(ray);
@@ -51,5 +63,5 @@ pub fn bounces(scene: &Scene, tree: &KdTreeData, size: u32, max_bounces: u32) ->
             out.push(rays.clone());
         }
     }
-    Ok((out, shadow))
+    Ok((out, shadow, shadow_pixels))
 }

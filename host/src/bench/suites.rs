@@ -15,7 +15,7 @@ use kdray_shared::kdtree::Algorithm;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
-pub const SUITES: &[&str] = &["horn", "bounces", "scaling", "breakdown", "build", "visits", "traversals"];
+pub const SUITES: &[&str] = &["horn", "bounces", "scaling", "breakdown", "build", "visits", "order", "traversals"];
 
 /// What every suite needs.
 pub struct Options<'g> {
@@ -71,6 +71,9 @@ fn horn_scenes(o: &Options) -> Vec<String> {
 /// Runs `suite` (or every suite for `all`); returns the files written.
 pub fn run_suite(suite: &str, o: &Options) -> Result<Vec<PathBuf>> {
     let mut scenes = Scenes::default();
+    if let Some(g) = o.gpu {
+        g.warm_up(std::time::Duration::from_secs(3))?;
+    }
     let list: Vec<&str> = if suite == "all" { SUITES.to_vec() } else { vec![suite] };
     let mut files = Vec::new();
     for s in list {
@@ -82,6 +85,7 @@ pub fn run_suite(suite: &str, o: &Options) -> Result<Vec<PathBuf>> {
             "breakdown" => breakdown(o, &mut scenes)?,
             "build" => build(o, &mut scenes)?,
             "visits" => visits(o, &mut scenes)?,
+            "order" => order(o, &mut scenes)?,
             "traversals" => traversals(o, &mut scenes)?,
             _ => bail!("unknown bench suite '{s}' (known: {}, all)", SUITES.join(", ")),
         };
@@ -121,7 +125,7 @@ fn plot(o: &Options, files: &mut Vec<PathBuf>, name: &str, draw: impl FnOnce(&Pa
 
 /// The primary rays (closest hit) and shadow rays (any hit) of a scene, dumped if asked.
 fn primary_and_shadow(o: &Options, bed: &Bed) -> Result<(RaySet, RaySet)> {
-    let (b, shadow) = rays::bounces(bed.scene, bed.tree, o.size, 0)?;
+    let (b, shadow, _) = rays::bounces(bed.scene, bed.tree, o.size, 0)?;
     let primary = bed.ray_set("primary", b.into_iter().next().unwrap_or_default(), true)?;
     let shadow = bed.ray_set("shadow", shadow, false)?;
     for set in [&primary, &shadow] {
@@ -221,7 +225,7 @@ fn bounces(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
     for spec in &specs {
         let (scene, tree) = scenes.get(spec, &o.build)?;
         let bed = Bed::new(scene, tree, o.gpu, o.size, o.reps)?;
-        let (sets, _) = rays::bounces(scene, tree, o.size, MAX)?;
+        let (sets, _, _) = rays::bounces(scene, tree, o.size, MAX)?;
         let mut header = vec!["bounce".to_string(), "rays".into(), "coherent packets".into()];
         header.extend(methods.iter().map(|m| format!("`{}` Mrays/s", m.name())));
         let mut cells = Vec::new();
@@ -517,6 +521,61 @@ fn visits(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
         line_chart(p, &LineChart { title: "Short-stack size against extra node visits (primary rays)".into(), x_label: "short-stack entries".into(), y_label: "% more node visits than the full stack".into(), x_log: false, y_log: false, series })
     });
     Ok(files)
+}
+
+/// Work distribution: the same rays in scanline order and in Morton order (2×2 quads, 8×8
+/// tiles), one thread per ray or persistent threads fetching rays from an atomic counter.
+fn order(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
+    let methods = [
+        Accel::Kd(Algorithm::Stack),
+        Accel::Persistent(Algorithm::Stack),
+        Accel::Kd(Algorithm::ShortStack(3)),
+        Accel::Persistent(Algorithm::ShortStack(3)),
+        Accel::Packet(Algorithm::ShortStack(3)),
+    ];
+    let specs = horn_scenes(o);
+    o.progress.set_length((specs.len() * 4 * methods.len()) as u64);
+    let morton = rays::morton_order(o.size);
+    let mut rank = vec![0u32; morton.len()];
+    for (k, p) in morton.iter().enumerate() {
+        rank[*p as usize] = k as u32;
+    }
+    let mut rows = Vec::new();
+    let mut header = vec!["method".to_string()];
+    let mut cells: Vec<Vec<String>> = methods.iter().map(|m| vec![format!("`{}`", m.name())]).collect();
+    for spec in &specs {
+        let (scene, tree) = scenes.get(spec, &o.build)?;
+        let bed = Bed::new(scene, tree, o.gpu, o.size, o.reps)?;
+        let (b, shadow, pixels) = rays::bounces(scene, tree, o.size, 0)?;
+        let primary = b.into_iter().next().unwrap_or_default();
+        let primary_m: Vec<_> = morton.iter().map(|&p| primary[p as usize]).collect();
+        let mut by_pixel: Vec<usize> = (0..shadow.len()).collect();
+        by_pixel.sort_by_key(|&k| rank[pixels[k] as usize]);
+        let shadow_m: Vec<_> = by_pixel.iter().map(|&k| shadow[k]).collect();
+        let sets = [
+            bed.ray_set("primary", primary, true)?,
+            bed.ray_set("primary in Morton order", primary_m, true)?,
+            bed.ray_set("shadow", shadow, false)?,
+            bed.ray_set("shadow in Morton order", shadow_m, false)?,
+        ];
+        for set in &sets {
+            header.push(format!("{} {}", scene.name, set.kind));
+            for (m, accel) in methods.iter().enumerate() {
+                let row = bed.measure(set, *accel)?;
+                cells[m].push(format!("{:.1}", row.mrays()));
+                rows.push(row);
+                o.progress.inc(1);
+            }
+        }
+    }
+    let summary = format!(
+        "## Ray order and persistent threads (Mrays/s)\n\n{}² pixels. Morton order: the same rays sorted along the Z-curve of their pixels (2×2 quads, 8×8 tiles). \
+         Persistent threads: {} threads in workgroups of 64 fetch the next 64 rays from an atomic counter until none are left (Aila & Laine 2009).\n\n{}",
+        o.size,
+        crate::gpu::kernels::PERSISTENT_THREADS,
+        markdown(&header, &cells)
+    );
+    finish(o, "order", "Ray order and persistent threads", &summary, &rows)
 }
 
 /// Every traversal with a GPU kernel, primary and shadow rays, per scene.

@@ -17,6 +17,9 @@ static SPIRV: &[u8] = include_bytes!(env!("kdray_shader.spv"));
 /// submission is far below this on any real device.
 const SUBMIT_TIMEOUT: Duration = Duration::from_secs(600);
 
+/// GPU work run before a timed measurement (clock ramp-up, caches).
+const WARM_UP: Duration = Duration::from_millis(100);
+
 pub struct Gpu {
     pub device: wgpu::Device,
     pub queue: wgpu::Queue,
@@ -212,13 +215,13 @@ impl Gpu {
         params: &FrameParams,
         buffers: &[&wgpu::Buffer],
     ) -> Result<()> {
-        self.record_pass(encoder, &Pass { kernel, params: *params, buffers: buffers.to_vec() }, None)
+        self.record_pass(encoder, &Pass { kernel, params: *params, buffers: buffers.to_vec(), clear: None }, None)
     }
 
     /// Records `pass`, writing timestamps at its start and end into queries `2i` and `2i + 1` of
     /// `timer = (queries, i)`.
     fn record_pass(&self, encoder: &mut wgpu::CommandEncoder, pass: &Pass, timer: Option<(&wgpu::QuerySet, u32)>) -> Result<()> {
-        let Pass { kernel, params, buffers } = pass;
+        let Pass { kernel, params, buffers, .. } = pass;
         let kernel = *kernel;
         let (pipeline, bgl) = &self.pipeline(kernel)?;
         assert_eq!(buffers.len(), kernel.bindings().len(), "binding count of {kernel:?}");
@@ -235,7 +238,10 @@ impl Gpu {
             layout: bgl,
             entries: &entries,
         });
-        let (gx, gy) = self.grid(params.count.div_ceil(kernel.items_per_thread()))?;
+        let (gx, gy) = self.grid(kernel.threads(params.count))?;
+        if let Some(b) = pass.clear {
+            encoder.clear_buffer(b, 0, None);
+        }
         let mut cpass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some(kernel.entry_point()?),
             timestamp_writes: timer.map(|(q, i)| wgpu::ComputePassTimestampWrites {
@@ -269,7 +275,7 @@ impl Gpu {
         Ok((gx, gy.max(if gx == 0 { 0 } else { 1 })))
     }
 
-    /// Runs a sequence of passes `reps` times after a warm-up. Per run: the wall time from
+    /// Runs a sequence of passes `reps` times after a warm-up (`WARM_UP`). Per run: the wall time from
     /// submit to completion and, where the adapter has timestamp queries, the GPU time from the
     /// start of the first pass to the end of the last and the GPU time of each pass (ms).
     pub fn time_passes(&self, passes: &[Pass], reps: usize) -> Result<Timing> {
@@ -289,7 +295,19 @@ impl Gpu {
         });
         let mut t = Timing { parts_ms: vec![Vec::new(); passes.len()], ..Default::default() };
         let period = self.queue.get_timestamp_period() as f64 * 1e-6;
-        for rep in 0..=reps {
+        // Warm-up: at least WARM_UP of GPU work (and 3 runs), so clocks have ramped up and
+        // caches are filled before anything is timed; bounded in runs.
+        let warm = std::time::Instant::now();
+        let mut runs = 0;
+        while runs < 3 || (warm.elapsed() < WARM_UP && runs < 1000) {
+            let mut enc = self.encoder();
+            for p in passes {
+                self.record_pass(&mut enc, p, None)?;
+            }
+            self.submit_wait(enc)?;
+            runs += 1;
+        }
+        for _ in 0..reps {
             let mut enc = self.encoder();
             for (i, p) in passes.iter().enumerate() {
                 self.record_pass(&mut enc, p, qs.as_ref().map(|q| (q, i as u32)))?;
@@ -299,11 +317,7 @@ impl Gpu {
             }
             let start = std::time::Instant::now();
             self.submit_wait(enc)?;
-            let wall = start.elapsed().as_secs_f64() * 1e3;
-            if rep == 0 {
-                continue; // warm-up
-            }
-            t.wall_ms.push(wall);
+            t.wall_ms.push(start.elapsed().as_secs_f64() * 1e3);
             if qs.is_some() {
                 let ticks: Vec<u64> = self.read(&resolve, 2 * n as usize)?;
                 t.gpu_ms.push(ticks[2 * n as usize - 1].wrapping_sub(ticks[0]) as f64 * period);
@@ -313,6 +327,26 @@ impl Gpu {
             }
         }
         Ok(t)
+    }
+
+    /// Keeps the GPU busy for `d` (bounded kernels of 4 M items each), so that clocks and
+    /// power states have settled before a series of measurements: on the H100 the first
+    /// seconds of a process ran the same kernels up to 5× slower.
+    pub fn warm_up(&self, d: Duration) -> Result<()> {
+        let n = 1usize << 22;
+        let out = self.storage::<[u32; 4]>("warm-up", n)?;
+        let start = std::time::Instant::now();
+        let mut seed = 0;
+        while start.elapsed() < d && seed < 100_000 {
+            let mut enc = self.encoder();
+            let p = FrameParams { count: n as u32, seed, ..Default::default() };
+            for _ in 0..16 {
+                self.record(&mut enc, Kernel::RngFill, &p, &[&out])?;
+            }
+            self.submit_wait(enc)?;
+            seed += 1;
+        }
+        Ok(())
     }
 
     pub fn encoder(&self) -> wgpu::CommandEncoder {
@@ -360,12 +394,14 @@ impl Gpu {
     }
 }
 
-/// One dispatch: a kernel, its parameters and its buffers (bindings 1..).
+/// One dispatch: a kernel, its parameters and its buffers (bindings 1..), and a buffer to
+/// zero before it (the persistent threads' ray counter).
 #[derive(Clone)]
 pub struct Pass<'a> {
     pub kernel: Kernel,
     pub params: FrameParams,
     pub buffers: Vec<&'a wgpu::Buffer>,
+    pub clear: Option<&'a wgpu::Buffer>,
 }
 
 /// Repeated measurements of a sequence of dispatches, in milliseconds: wall time, GPU time of

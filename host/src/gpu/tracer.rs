@@ -28,6 +28,8 @@ pub struct GpuTracer<'g> {
     has_mirror: bool,
     tri_count: u64,
     light_count: u32,
+    /// Ray counter of the persistent-thread kernels.
+    counter: wgpu::Buffer,
 }
 
 /// The decomposed pipeline's per-batch buffers: leaf lists (`capacity` entries per ray) and
@@ -54,6 +56,7 @@ impl<'g> GpuTracer<'g> {
             lights: gpu.upload("light", &lights)?,
             tri_count: scene.triangles.len() as u64,
             light_count: lights.len() as u32,
+            counter: gpu.upload("ray counter", &[0u32])?,
         })
     }
 
@@ -121,15 +124,20 @@ impl<'g> GpuTracer<'g> {
                 let params = FrameParams { leaf_capacity: capacity, ..*p };
                 let with = |extra: &[&'a wgpu::Buffer]| [&[rays][..], &scene[..], extra].concat();
                 vec![
-                    Pass { kernel: Kernel::TraverseLeaves, params, buffers: with(&[&l.lists, &l.status]) },
-                    Pass { kernel: Kernel::IntersectLeaves { closest }, params, buffers: with(&[&l.lists, &l.status, out]) },
-                    Pass { kernel: Kernel::Fallback { closest }, params, buffers: with(&[&l.status, out]) },
+                    Pass { kernel: Kernel::TraverseLeaves, params, buffers: with(&[&l.lists, &l.status]), clear: None },
+                    Pass { kernel: Kernel::IntersectLeaves { closest }, params, buffers: with(&[&l.lists, &l.status, out]), clear: None },
+                    Pass { kernel: Kernel::Fallback { closest }, params, buffers: with(&[&l.status, out]), clear: None },
                 ]
             }
             (Accel::Decomposed { .. }, None) => anyhow::bail!("the decomposed pipeline needs leaf-list buffers"),
+            (Accel::Persistent(_), _) => {
+                let kernel = if closest { Kernel::Closest(accel) } else { Kernel::Any(accel) };
+                let buffers = vec![rays, scene[0], scene[1], scene[2], out, &self.counter];
+                vec![Pass { kernel, params: *p, buffers, clear: Some(&self.counter) }]
+            }
             _ => {
                 let kernel = if closest { Kernel::Closest(accel) } else { Kernel::Any(accel) };
-                vec![Pass { kernel, params: *p, buffers: vec![rays, scene[0], scene[1], scene[2], out] }]
+                vec![Pass { kernel, params: *p, buffers: vec![rays, scene[0], scene[1], scene[2], out], clear: None }]
             }
         })
     }
@@ -231,7 +239,7 @@ impl GpuTracer<'_> {
     /// (reflect or shade), shadow rays (only with lights) and accumulation. Bounce 0 writes its
     /// hits into `primary_hits`.
     pub fn frame_passes<'a>(&'a self, accel: Accel, p: &FrameParams, fb: &'a FrameBuffers) -> Result<Vec<Pass<'a>>> {
-        let mut passes = vec![Pass { kernel: Kernel::CameraRays, params: *p, buffers: vec![&fb.rays, &fb.paths] }];
+        let mut passes = vec![Pass { kernel: Kernel::CameraRays, params: *p, buffers: vec![&fb.rays, &fb.paths], clear: None }];
         for bounce in 0..=p.max_bounces {
             let p = FrameParams { bounce, ..*p };
             let hits = if bounce == 0 { &fb.primary_hits } else { &fb.hits };
@@ -240,11 +248,12 @@ impl GpuTracer<'_> {
                 kernel: Kernel::PathStep,
                 params: p,
                 buffers: vec![&fb.rays, &self.tris, hits, &self.materials, &self.lights, &fb.paths, &fb.shadow, &fb.terms],
+                clear: None,
             });
             if self.light_count > 0 {
                 passes.extend(self.trace_passes(accel, false, &p, &fb.shadow, &fb.occluded, fb.lists.as_ref())?);
             }
-            passes.push(Pass { kernel: Kernel::Accumulate, params: p, buffers: vec![&fb.terms, &fb.occluded, &fb.paths, &fb.radiance] });
+            passes.push(Pass { kernel: Kernel::Accumulate, params: p, buffers: vec![&fb.terms, &fb.occluded, &fb.paths, &fb.radiance], clear: None });
         }
         Ok(passes)
     }
