@@ -43,52 +43,58 @@ pub fn camera_rays(
     }
 }
 
+/// What a query stores per ray: the hit (closest hit) or 1/0 (any hit).
+trait Answer {
+    type Out;
+    fn answer(&self) -> Self::Out;
+}
+impl Answer for Closest {
+    type Out = Hit;
+    #[inline(always)]
+    fn answer(&self) -> Hit {
+        self.hit
+    }
+}
+impl Answer for AnyHit {
+    type Out = u32;
+    #[inline(always)]
+    fn answer(&self) -> u32 {
+        self.found as u32
+    }
+}
+
 /// Closest-hit and any-hit entry points for one way of finding hits. All of them share one
 /// binding layout: 1 rays, 2 triangles, 3 kd-tree nodes, 4 primitive indices, 5 results
 /// (brute force leaves 3 and 4 unused).
+macro_rules! trace_kernel {
+    ($name:ident, $query:ident, $out:ty, |$tree:ident, $ray:ident, $q:ident| $run:expr) => {
+        #[spirv(compute(threads(64)))]
+        pub fn $name(
+            #[spirv(global_invocation_id)] id: UVec3,
+            #[spirv(num_workgroups)] groups: UVec3,
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &FrameParams,
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[Ray],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] tris: &[Triangle],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] nodes: &[KdNode],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] prims: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] out: &mut [$out],
+        ) {
+            let i = item(id, groups);
+            if i < params.count {
+                let $tree = tree(params, tris, nodes, prims);
+                let $ray = &rays[i as usize];
+                let mut $q = $query::new($ray);
+                $run;
+                out[i as usize] = $q.answer();
+            }
+        }
+    };
+}
+
 macro_rules! trace_kernels {
     ($closest:ident, $any:ident, |$tree:ident, $ray:ident, $q:ident| $run:expr) => {
-        #[spirv(compute(threads(64)))]
-        pub fn $closest(
-            #[spirv(global_invocation_id)] id: UVec3,
-            #[spirv(num_workgroups)] groups: UVec3,
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &FrameParams,
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[Ray],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] tris: &[Triangle],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] nodes: &[KdNode],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] prims: &[u32],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] hits: &mut [Hit],
-        ) {
-            let i = item(id, groups);
-            if i < params.count {
-                let $tree = tree(params, tris, nodes, prims);
-                let $ray = &rays[i as usize];
-                let mut $q = Closest::new($ray);
-                $run;
-                hits[i as usize] = $q.hit;
-            }
-        }
-
-        #[spirv(compute(threads(64)))]
-        pub fn $any(
-            #[spirv(global_invocation_id)] id: UVec3,
-            #[spirv(num_workgroups)] groups: UVec3,
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &FrameParams,
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[Ray],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] tris: &[Triangle],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] nodes: &[KdNode],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] prims: &[u32],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] occluded: &mut [u32],
-        ) {
-            let i = item(id, groups);
-            if i < params.count {
-                let $tree = tree(params, tris, nodes, prims);
-                let $ray = &rays[i as usize];
-                let mut $q = AnyHit::new($ray);
-                $run;
-                occluded[i as usize] = $q.found as u32;
-            }
-        }
+        trace_kernel!($closest, Closest, Hit, |$tree, $ray, $q| $run);
+        trace_kernel!($any, AnyHit, u32, |$tree, $ray, $q| $run);
     };
 }
 
@@ -109,61 +115,41 @@ trace_kernels!(closest_shortstack8, any_shortstack8, |t, r, q| traverse::<_, _, 
 
 /// Four rays per thread (Horn et al.'s packets): thread `i` traces rays 4i..4i+3 together when
 /// their direction signs agree, else one by one. `$kp`/`$k` are the packet and single-ray stacks.
+macro_rules! packet_kernel {
+    ($name:ident, $query:ident, $out:ty, $kp:ty, $k:ty, $pushdown:expr) => {
+        #[spirv(compute(threads(64)))]
+        pub fn $name(
+            #[spirv(global_invocation_id)] id: UVec3,
+            #[spirv(num_workgroups)] groups: UVec3,
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &FrameParams,
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[Ray],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] tris: &[Triangle],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] nodes: &[KdNode],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] prims: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] out: &mut [$out],
+        ) {
+            let first = item(id, groups) * PACKET as u32;
+            if first < params.count {
+                let t = tree(params, tris, nodes, prims);
+                let r = packet_rays(params, rays, first);
+                let mut qs = [$query::new(&r[0]), $query::new(&r[1]), $query::new(&r[2]), $query::new(&r[3])];
+                packet_or_single::<_, $kp, $k, _, $pushdown>(&t, &r, &mut qs, &mut NoStats);
+                let mut l = 0;
+                while l < PACKET as u32 {
+                    if first + l < params.count {
+                        out[(first + l) as usize] = qs[l as usize].answer();
+                    }
+                    l += 1;
+                }
+            }
+        }
+    };
+}
+
 macro_rules! packet_kernels {
     ($closest:ident, $any:ident, $kp:ty, $k:ty, $pushdown:expr) => {
-        #[spirv(compute(threads(64)))]
-        pub fn $closest(
-            #[spirv(global_invocation_id)] id: UVec3,
-            #[spirv(num_workgroups)] groups: UVec3,
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &FrameParams,
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[Ray],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] tris: &[Triangle],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] nodes: &[KdNode],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] prims: &[u32],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] hits: &mut [Hit],
-        ) {
-            let first = item(id, groups) * PACKET as u32;
-            if first < params.count {
-                let t = tree(params, tris, nodes, prims);
-                let r = packet_rays(params, rays, first);
-                let mut q = [Closest::new(&r[0]), Closest::new(&r[1]), Closest::new(&r[2]), Closest::new(&r[3])];
-                packet_or_single::<_, $kp, $k, _, $pushdown>(&t, &r, &mut q, &mut NoStats);
-                let mut l = 0;
-                while l < PACKET as u32 {
-                    if first + l < params.count {
-                        hits[(first + l) as usize] = q[l as usize].hit;
-                    }
-                    l += 1;
-                }
-            }
-        }
-
-        #[spirv(compute(threads(64)))]
-        pub fn $any(
-            #[spirv(global_invocation_id)] id: UVec3,
-            #[spirv(num_workgroups)] groups: UVec3,
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &FrameParams,
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[Ray],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] tris: &[Triangle],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] nodes: &[KdNode],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] prims: &[u32],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] occluded: &mut [u32],
-        ) {
-            let first = item(id, groups) * PACKET as u32;
-            if first < params.count {
-                let t = tree(params, tris, nodes, prims);
-                let r = packet_rays(params, rays, first);
-                let mut q = [AnyHit::new(&r[0]), AnyHit::new(&r[1]), AnyHit::new(&r[2]), AnyHit::new(&r[3])];
-                packet_or_single::<_, $kp, $k, _, $pushdown>(&t, &r, &mut q, &mut NoStats);
-                let mut l = 0;
-                while l < PACKET as u32 {
-                    if first + l < params.count {
-                        occluded[(first + l) as usize] = q[l as usize].found as u32;
-                    }
-                    l += 1;
-                }
-            }
-        }
+        packet_kernel!($closest, Closest, Hit, $kp, $k, $pushdown);
+        packet_kernel!($any, AnyHit, u32, $kp, $k, $pushdown);
     };
 }
 
@@ -189,67 +175,44 @@ packet_kernels!(closest_packet_shortstack3, any_packet_shortstack3, ShortStack<P
 /// Persistent threads (Aila & Laine 2009): a fixed grid of workgroups, each fetching the next
 /// 64 rays from an atomic counter (binding 6, zeroed before the dispatch) until none are left;
 /// the traversal per ray is unchanged. Bounded: every round consumes 64 rays.
+macro_rules! persistent_kernel {
+    ($name:ident, $query:ident, $out:ty, $k:ty, $pushdown:expr) => {
+        #[spirv(compute(threads(64)))]
+        pub fn $name(
+            #[spirv(local_invocation_index)] lane: u32,
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &FrameParams,
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[Ray],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] tris: &[Triangle],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] nodes: &[KdNode],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] prims: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] out: &mut [$out],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] counter: &mut [u32],
+            #[spirv(workgroup)] next: &mut u32,
+        ) {
+            let t = tree(params, tris, nodes, prims);
+            let mut round = 0;
+            while round <= params.count / WORKGROUP {
+                let base = fetch(lane, counter, next);
+                if base >= params.count {
+                    break;
+                }
+                let i = base + lane;
+                if i < params.count {
+                    let ray = &rays[i as usize];
+                    let mut q = $query::new(ray);
+                    traverse::<_, _, _, $pushdown>(&t, ray, &mut q, &mut <$k>::new(), &mut NoStats);
+                    out[i as usize] = q.answer();
+                }
+                round += 1;
+            }
+        }
+    };
+}
+
 macro_rules! persistent_kernels {
     ($closest:ident, $any:ident, $k:ty, $pushdown:expr) => {
-        #[spirv(compute(threads(64)))]
-        pub fn $closest(
-            #[spirv(local_invocation_index)] lane: u32,
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &FrameParams,
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[Ray],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] tris: &[Triangle],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] nodes: &[KdNode],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] prims: &[u32],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] hits: &mut [Hit],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] counter: &mut [u32],
-            #[spirv(workgroup)] next: &mut u32,
-        ) {
-            let t = tree(params, tris, nodes, prims);
-            let mut round = 0;
-            while round <= params.count / WORKGROUP {
-                let base = fetch(lane, counter, next);
-                if base >= params.count {
-                    break;
-                }
-                let i = base + lane;
-                if i < params.count {
-                    let ray = &rays[i as usize];
-                    let mut q = Closest::new(ray);
-                    traverse::<_, _, _, $pushdown>(&t, ray, &mut q, &mut <$k>::new(), &mut NoStats);
-                    hits[i as usize] = q.hit;
-                }
-                round += 1;
-            }
-        }
-
-        #[spirv(compute(threads(64)))]
-        pub fn $any(
-            #[spirv(local_invocation_index)] lane: u32,
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &FrameParams,
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[Ray],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] tris: &[Triangle],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] nodes: &[KdNode],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] prims: &[u32],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] occluded: &mut [u32],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] counter: &mut [u32],
-            #[spirv(workgroup)] next: &mut u32,
-        ) {
-            let t = tree(params, tris, nodes, prims);
-            let mut round = 0;
-            while round <= params.count / WORKGROUP {
-                let base = fetch(lane, counter, next);
-                if base >= params.count {
-                    break;
-                }
-                let i = base + lane;
-                if i < params.count {
-                    let ray = &rays[i as usize];
-                    let mut q = AnyHit::new(ray);
-                    traverse::<_, _, _, $pushdown>(&t, ray, &mut q, &mut <$k>::new(), &mut NoStats);
-                    occluded[i as usize] = q.found as u32;
-                }
-                round += 1;
-            }
-        }
+        persistent_kernel!($closest, Closest, Hit, $k, $pushdown);
+        persistent_kernel!($any, AnyHit, u32, $k, $pushdown);
     };
 }
 
@@ -301,7 +264,7 @@ pub fn traverse_leaves(
 /// step 2 leaves `status[i]` = 1 where the list overflowed without settling the query (0
 /// elsewhere); the fallback kernel traces exactly those rays with the full-stack traversal.
 macro_rules! leaf_kernels {
-    ($intersect:ident, $fallback:ident, $query:ident, $out:ty, |$q:ident| $result:expr) => {
+    ($intersect:ident, $fallback:ident, $query:ident, $out:ty) => {
         #[spirv(compute(threads(64)))]
         pub fn $intersect(
             #[spirv(global_invocation_id)] id: UVec3,
@@ -320,10 +283,10 @@ macro_rules! leaf_kernels {
                 let k = i as usize;
                 let t = tree(params, tris, nodes, prims);
                 let ray = &rays[k];
-                let mut $q = $query::new(ray);
-                let settled = intersect_leaves(&t, ray, lists, k * params.leaf_capacity as usize, status[k], &mut $q, &mut NoStats);
+                let mut q = $query::new(ray);
+                let settled = intersect_leaves(&t, ray, lists, k * params.leaf_capacity as usize, status[k], &mut q, &mut NoStats);
                 status[k] = !settled as u32;
-                out[k] = $result;
+                out[k] = q.answer();
             }
         }
 
@@ -343,16 +306,16 @@ macro_rules! leaf_kernels {
             if i < params.count && status[i as usize] != 0 {
                 let t = tree(params, tris, nodes, prims);
                 let ray = &rays[i as usize];
-                let mut $q = $query::new(ray);
-                traverse::<_, _, _, false>(&t, ray, &mut $q, &mut FullStack::new(), &mut NoStats);
-                out[i as usize] = $result;
+                let mut q = $query::new(ray);
+                traverse::<_, _, _, false>(&t, ray, &mut q, &mut FullStack::new(), &mut NoStats);
+                out[i as usize] = q.answer();
             }
         }
     };
 }
 
-leaf_kernels!(closest_leaves, closest_fallback, Closest, Hit, |q| q.hit);
-leaf_kernels!(any_leaves, any_fallback, AnyHit, u32, |q| q.found as u32);
+leaf_kernels!(closest_leaves, closest_fallback, Closest, Hit);
+leaf_kernels!(any_leaves, any_fallback, AnyHit, u32);
 
 /// One bounce of every path: reflect at mirrors (updating `rays` in place) or shade.
 #[spirv(compute(threads(64)))]
