@@ -188,13 +188,54 @@ fn packets_and_decomposed_pipeline_render_the_same_image() {
         assert!(base.hits.iter().filter(|h| h.is_hit()).count() > 8000);
         let mut variants = vec![Accel::Decomposed { capacity: 1 }, Accel::Decomposed { capacity: 16 }];
         variants.extend(kdray::gpu::kernels::GPU_PACKETS.map(Accel::Packet));
-        variants.extend(kdray::gpu::kernels::GPU_PERSISTENT.map(Accel::Persistent));
         for accel in variants {
             let img = t.render(accel, &cam, 5, 4, &pb).unwrap();
             let cmp = compare(&base, &img, 1.0);
             println!("{} {}: {cmp}", t.device_name(), accel.name());
             assert_eq!(img.hits, base.hits, "{} {}: primary hits differ", t.device_name(), accel.name());
             assert_eq!(img.radiance, base.radiance, "{} {}: radiance differs", t.device_name(), accel.name());
+        }
+    }
+}
+
+/// `render --ray-order tiles`: the tile order is a bijection of the pixels for any image size,
+/// groups of four rays are 2×2 quads, and the image equals the scanline image bit for bit.
+#[test]
+fn tiled_ray_order_renders_the_same_image() {
+    use kdray::kdtree::{build, BuildOptions};
+    use kdray_shared::kdtree::Algorithm;
+    let scene = scene::load("cornell-mirror").unwrap();
+    for (w, h) in [(1, 1), (7, 5), (8, 8), (13, 21), (64, 40), (100, 9)] {
+        let mut cam = scene.camera.to_pod(w, h);
+        cam.order = kdray_shared::ORDER_TILES;
+        let mut seen = vec![false; (w * h) as usize];
+        for i in 0..w * h {
+            let p = camera::pixel(&cam, i) as usize;
+            assert!(!seen[p], "{w}x{h}: pixel {p} twice");
+            seen[p] = true;
+        }
+    }
+    let mut cam = scene.camera.to_pod(16, 16);
+    cam.order = kdray_shared::ORDER_TILES;
+    let quad: Vec<u32> = (0..4).map(|i| camera::pixel(&cam, i)).collect();
+    assert_eq!(quad, [0, 1, 16, 17], "the first four rays are a 2×2 quad");
+
+    let tree = build(&scene.triangles, &BuildOptions::default());
+    let scan = scene.camera.to_pod(90, 70);
+    let tiles = kdray_shared::Camera { order: kdray_shared::ORDER_TILES, ..scan };
+    let pb = indicatif::ProgressBar::hidden();
+    let cpu = CpuTracer::new(&scene, Some(&tree));
+    let gpu = common::gpu().map(|g| GpuTracer::new(g, &scene, Some(&tree)).unwrap());
+    let mut tracers: Vec<&dyn Tracer> = vec![&cpu];
+    if let Some(g) = &gpu {
+        tracers.push(g);
+    }
+    for t in tracers {
+        for accel in [Accel::Kd(Algorithm::ShortStack(3)), Accel::Packet(Algorithm::ShortStack(3))] {
+            let a = t.render(accel, &scan, 9, 4, &pb).unwrap();
+            let b = t.render(accel, &tiles, 9, 4, &pb).unwrap();
+            assert_eq!(a.hits, b.hits, "{} {}", t.device_name(), accel.name());
+            assert_eq!(a.radiance, b.radiance, "{} {}", t.device_name(), accel.name());
         }
     }
 }

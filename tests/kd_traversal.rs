@@ -32,11 +32,9 @@ fn cpu_grouped() -> Vec<Accel> {
     v
 }
 
-/// The same on the GPU (every packet and persistent-thread kernel; leaf lists that overflow
-/// often and rarely).
+/// The same on the GPU (every packet kernel; leaf lists that overflow often and rarely).
 fn gpu_grouped() -> Vec<Accel> {
     let mut v: Vec<Accel> = kdray::gpu::kernels::GPU_PACKETS.into_iter().map(Accel::Packet).collect();
-    v.extend(kdray::gpu::kernels::GPU_PERSISTENT.map(Accel::Persistent));
     v.extend([2, 16].map(|capacity| Accel::Decomposed { capacity }));
     v
 }

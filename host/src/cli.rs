@@ -18,6 +18,12 @@ pub struct Cli {
 }
 
 #[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
+pub enum RayOrderArg {
+    Scanline,
+    Tiles,
+}
+
+#[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
 pub enum PipelineArg {
     Monolithic,
     Decomposed,
@@ -100,6 +106,10 @@ pub enum Command {
         /// intersect, full-stack traversal, overflowing lists finished by the monolithic kernel).
         #[arg(long, value_enum, default_value = "monolithic")]
         pipeline: PipelineArg,
+        /// Pixel order of the rays: `scanline`, or `tiles` (8×8 tiles, Morton order inside:
+        /// neighbouring rays run together).
+        #[arg(long, value_enum, default_value = "scanline")]
+        ray_order: RayOrderArg,
         /// Leaf-list entries per ray of the decomposed pipeline.
         #[arg(long, default_value_t = crate::trace::DEFAULT_LEAF_CAPACITY)]
         leaf_capacity: u32,
@@ -224,6 +234,7 @@ pub fn run(cli: Cli) -> Result<()> {
             traversal,
             packets,
             pipeline,
+            ray_order,
             leaf_capacity,
             bounces,
             build,
@@ -250,7 +261,10 @@ pub fn run(cli: Cli) -> Result<()> {
             );
             let tree = accel.needs_tree().then(|| build_tree(&scene, &opts));
             let tree = tree.as_ref();
-            let cam = scene.camera.to_pod(size, size);
+            let mut cam = scene.camera.to_pod(size, size);
+            if ray_order == RayOrderArg::Tiles {
+                cam.order = kdray_shared::ORDER_TILES;
+            }
             let gpu = match device {
                 Some(DeviceArg::Cpu) => None,
                 Some(DeviceArg::Gpu) => Some(Gpu::new()?),

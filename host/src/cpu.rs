@@ -63,8 +63,7 @@ impl<'s> CpuTracer<'s> {
         let mut q = rays.each_ref().map(Q::start);
         match accel {
             Accel::Brute => q.iter_mut().zip(rays).for_each(|(q, r)| q.brute(r, self.tris)),
-            // Work distribution is the GPU's concern: natively the same traversal.
-            Accel::Kd(alg) | Accel::Persistent(alg) => {
+            Accel::Kd(alg) => {
                 let tree = self.tree()?;
                 q.iter_mut().zip(rays).for_each(|(q, r)| kdtree::run(alg, &tree, r, q, stats));
             }
@@ -169,62 +168,72 @@ impl Tracer for CpuTracer<'_> {
         let max_bounces = if self.has_mirror { bounces } else { 0 };
         let (w, h) = (cam.width, cam.height);
         let n = (w * h) as usize;
-        let mut hits = vec![Hit::NONE; n];
-        let mut radiance = vec![[0.0f32; 4]; n];
+        // Results in tracing order (the camera's pixel order), then put in place.
+        let mut traced = vec![(Hit::NONE, [0.0f32; 4]); n];
         let chunk = (w * ROWS_PER_TASK) as usize;
         progress.set_length(n as u64);
-        hits.par_chunks_mut(chunk).zip(radiance.par_chunks_mut(chunk)).enumerate().try_for_each(
-            |(c, (hs, rs))| -> Result<()> {
-                for (g, (hs, rs)) in hs.chunks_mut(PACKET).zip(rs.chunks_mut(PACKET)).enumerate() {
-                    // Four neighbouring pixels at a time, exactly as the GPU kernels treat them.
-                    let first = (c * chunk + g * PACKET) as u32;
-                    let m = hs.len();
-                    let mut rays = [Ray::default(); PACKET];
-                    for (l, r) in rays[..m].iter_mut().enumerate() {
-                        *r = camera::primary_ray(cam, first + l as u32);
-                    }
-                    let mut paths = [PathState::START; PACKET];
-                    for p in &mut paths[m..] {
-                        p.active = 0;
-                    }
-                    for bounce in 0..=max_bounces {
-                        let hit = self.closest4(accel, &rays)?;
-                        if bounce == 0 {
-                            hs.copy_from_slice(&hit[..m]);
-                        }
-                        let mut shadow = [Ray::default(); PACKET];
-                        let mut terms = [ShadeTerms::default(); PACKET];
-                        for l in 0..m {
-                            (shadow[l], terms[l]) = shade::path_step(
-                                seed,
-                                first + l as u32,
-                                bounce,
-                                max_bounces,
-                                &mut rays[l],
-                                &hit[l],
-                                &mut paths[l],
-                                self.tris,
-                                self.materials,
-                                &self.lights,
-                                self.lights.len() as u32,
-                            );
-                        }
-                        let occluded = if self.lights.is_empty() { [false; PACKET] } else { self.any4(accel, &shadow)? };
-                        for l in 0..m {
-                            shade::accumulate(&mut paths[l], &terms[l], occluded[l]);
-                        }
-                        if paths.iter().all(|p| p.active == 0) {
-                            break;
-                        }
-                    }
-                    for (r, p) in rs.iter_mut().zip(&paths) {
-                        *r = [p.radiance[0], p.radiance[1], p.radiance[2], 1.0];
+        traced.par_chunks_mut(chunk).enumerate().try_for_each(|(c, items)| -> Result<()> {
+            for (g, items) in items.chunks_mut(PACKET).enumerate() {
+                // Four consecutive rays at a time, exactly as the GPU kernels group them.
+                let first = (c * chunk + g * PACKET) as u32;
+                let m = items.len();
+                let mut rays = [Ray::default(); PACKET];
+                let mut paths = [PathState::start(0); PACKET];
+                for l in 0..PACKET {
+                    if l < m {
+                        let pixel = camera::pixel(cam, first + l as u32);
+                        rays[l] = camera::primary_ray(cam, pixel);
+                        paths[l] = PathState::start(pixel);
+                    } else {
+                        paths[l].active = 0;
                     }
                 }
-                progress.inc(hs.len() as u64);
-                Ok(())
-            },
-        )?;
+                for bounce in 0..=max_bounces {
+                    let hit = self.closest4(accel, &rays)?;
+                    if bounce == 0 {
+                        for (item, h) in items.iter_mut().zip(hit) {
+                            item.0 = h;
+                        }
+                    }
+                    let mut shadow = [Ray::default(); PACKET];
+                    let mut terms = [ShadeTerms::default(); PACKET];
+                    for l in 0..m {
+                        (shadow[l], terms[l]) = shade::path_step(
+                            seed,
+                            paths[l].pixel,
+                            bounce,
+                            max_bounces,
+                            &mut rays[l],
+                            &hit[l],
+                            &mut paths[l],
+                            self.tris,
+                            self.materials,
+                            &self.lights,
+                            self.lights.len() as u32,
+                        );
+                    }
+                    let occluded = if self.lights.is_empty() { [false; PACKET] } else { self.any4(accel, &shadow)? };
+                    for l in 0..m {
+                        shade::accumulate(&mut paths[l], &terms[l], occluded[l]);
+                    }
+                    if paths.iter().all(|p| p.active == 0) {
+                        break;
+                    }
+                }
+                for (item, p) in items.iter_mut().zip(&paths) {
+                    item.1 = [p.radiance[0], p.radiance[1], p.radiance[2], 1.0];
+                }
+            }
+            progress.inc(items.len() as u64);
+            Ok(())
+        })?;
+        let mut hits = vec![Hit::NONE; n];
+        let mut radiance = vec![[0.0f32; 4]; n];
+        for (k, (hit, rad)) in traced.into_iter().enumerate() {
+            let px = camera::pixel(cam, k as u32) as usize;
+            hits[px] = hit;
+            radiance[px] = rad;
+        }
         Ok(RenderOutput { width: w, height: h, hits, radiance })
     }
 }

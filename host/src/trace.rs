@@ -14,8 +14,6 @@ pub enum Accel {
     Brute,
     Kd(Algorithm),
     Packet(Algorithm),
-    /// GPU persistent threads fetching rays from an atomic counter (natively the same as `Kd`).
-    Persistent(Algorithm),
     Decomposed { capacity: u32 },
 }
 
@@ -32,12 +30,6 @@ impl Accel {
             return match Accel::parse(alg)? {
                 Accel::Kd(a) => Ok(Accel::Packet(a)),
                 _ => bail!("'+packets' applies to the kd traversals (stack, restart, pushdown, shortstack[:N]), not '{alg}'"),
-            };
-        }
-        if let Some(alg) = s.strip_suffix("+persistent") {
-            return match Accel::parse(alg)? {
-                Accel::Kd(a) => Ok(Accel::Persistent(a)),
-                _ => bail!("'+persistent' applies to the kd traversals, not '{alg}'"),
             };
         }
         if let Some(rest) = s.strip_prefix("decomposed") {
@@ -68,7 +60,6 @@ impl Accel {
             Accel::Brute => "brute".into(),
             Accel::Kd(a) => alg_name(*a),
             Accel::Packet(a) => format!("{}+packets", alg_name(*a)),
-            Accel::Persistent(a) => format!("{}+persistent", alg_name(*a)),
             Accel::Decomposed { capacity } => format!("decomposed:{capacity}"),
         }
     }
@@ -76,7 +67,7 @@ impl Accel {
     /// The same traversal with 4-ray packets (`None` for brute force and the decomposed pipeline).
     pub fn with_packets(self) -> Option<Accel> {
         match self {
-            Accel::Kd(a) | Accel::Packet(a) | Accel::Persistent(a) => Some(Accel::Packet(a)),
+            Accel::Kd(a) | Accel::Packet(a) => Some(Accel::Packet(a)),
             _ => None,
         }
     }

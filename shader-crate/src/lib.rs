@@ -16,9 +16,7 @@ use kdray_shared::{
     camera, shade, FrameParams, Hit, Light, Material, PathState, Ray, ShadeTerms, Triangle,
 };
 use kdray_shared::rng::Rng;
-use spirv_std::arch::{atomic_i_add, workgroup_memory_barrier_with_group_sync};
 use spirv_std::glam::UVec3;
-use spirv_std::memory::{Scope, Semantics};
 use spirv_std::spirv;
 
 pub const WORKGROUP: u32 = 64;
@@ -38,8 +36,9 @@ pub fn camera_rays(
 ) {
     let i = item(id, groups);
     if i < params.count {
-        rays[i as usize] = camera::primary_ray(&params.camera, params.first + i);
-        paths[i as usize] = PathState::START;
+        let pixel = camera::pixel(&params.camera, params.first + i);
+        rays[i as usize] = camera::primary_ray(&params.camera, pixel);
+        paths[i as usize] = PathState::start(pixel);
     }
 }
 
@@ -172,65 +171,6 @@ packet_kernels!(closest_packet_restart, any_packet_restart, NoStack, NoStack, fa
 packet_kernels!(closest_packet_pushdown, any_packet_pushdown, NoStack, NoStack, true);
 packet_kernels!(closest_packet_shortstack3, any_packet_shortstack3, ShortStack<PacketEntry, 3>, ShortStack<Entry, 3>, true);
 
-/// Persistent threads (Aila & Laine 2009): a fixed grid of workgroups, each fetching the next
-/// 64 rays from an atomic counter (binding 6, zeroed before the dispatch) until none are left;
-/// the traversal per ray is unchanged. Bounded: every round consumes 64 rays.
-macro_rules! persistent_kernel {
-    ($name:ident, $query:ident, $out:ty, $k:ty, $pushdown:expr) => {
-        #[spirv(compute(threads(64)))]
-        pub fn $name(
-            #[spirv(local_invocation_index)] lane: u32,
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &FrameParams,
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[Ray],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] tris: &[Triangle],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] nodes: &[KdNode],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] prims: &[u32],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] out: &mut [$out],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] counter: &mut [u32],
-            #[spirv(workgroup)] next: &mut u32,
-        ) {
-            let t = tree(params, tris, nodes, prims);
-            let mut round = 0;
-            while round <= params.count / WORKGROUP {
-                let base = fetch(lane, counter, next);
-                if base >= params.count {
-                    break;
-                }
-                let i = base + lane;
-                if i < params.count {
-                    let ray = &rays[i as usize];
-                    let mut q = $query::new(ray);
-                    traverse::<_, _, _, $pushdown>(&t, ray, &mut q, &mut <$k>::new(), &mut NoStats);
-                    out[i as usize] = q.answer();
-                }
-                round += 1;
-            }
-        }
-    };
-}
-
-macro_rules! persistent_kernels {
-    ($closest:ident, $any:ident, $k:ty, $pushdown:expr) => {
-        persistent_kernel!($closest, Closest, Hit, $k, $pushdown);
-        persistent_kernel!($any, AnyHit, u32, $k, $pushdown);
-    };
-}
-
-/// The first of the next 64 rays for the whole workgroup (uniform result).
-#[inline(always)]
-fn fetch(lane: u32, counter: &mut [u32], next: &mut u32) -> u32 {
-    if lane == 0 {
-        *next = unsafe { atomic_i_add::<u32, { Scope::QueueFamily as u32 }, { Semantics::NONE.bits() }>(&mut counter[0], WORKGROUP) };
-    }
-    workgroup_memory_barrier_with_group_sync();
-    let base = *next;
-    workgroup_memory_barrier_with_group_sync();
-    base
-}
-
-persistent_kernels!(closest_persistent_stack, any_persistent_stack, FullStack, false);
-persistent_kernels!(closest_persistent_shortstack3, any_persistent_shortstack3, ShortStack<Entry, 3>, true);
-
 /// Decomposed pipeline, step 1: each ray's non-empty leaves (full-stack traversal) into
 /// `lists[i · cap ..]`, the count and overflow bit into `status[i]`.
 #[spirv(compute(threads(64)))]
@@ -339,7 +279,7 @@ pub fn path_step(
         let mut path = paths[k];
         let (shadow, t) = shade::path_step(
             params.seed,
-            params.first + i,
+            path.pixel,
             params.bounce,
             params.max_bounces,
             &mut ray,

@@ -83,10 +83,17 @@ pub struct Camera {
     pub top_left: [f32; 3],
     pub height: u32,
     pub du: [f32; 3],
-    pub _pad0: u32,
+    /// The order in which pixels are traced: `ORDER_SCANLINE` or `ORDER_TILES`.
+    pub order: u32,
     pub dv: [f32; 3],
     pub _pad1: u32,
 }
+
+/// Pixels in rows, top row first.
+pub const ORDER_SCANLINE: u32 = 0;
+/// 8×8 tiles in rows, Morton (Z-curve) order inside a tile: 4 consecutive rays form a 2×2 quad,
+/// 32 an 8×4 half tile (see `camera::pixel`).
+pub const ORDER_TILES: u32 = 1;
 
 /// Per-dispatch parameters (one read-only storage buffer, binding 0 of every kernel).
 #[repr(C)]
@@ -130,9 +137,12 @@ pub struct PathState {
     pub throughput: [f32; 3],
     pub active: u32,
     pub radiance: [f32; 3],
-    pub _pad: u32,
+    /// The pixel this path belongs to (its random stream).
+    pub pixel: u32,
 }
 
 impl PathState {
-    pub const START: PathState = PathState { throughput: [1.0; 3], active: 1, radiance: [0.0; 3], _pad: 0 };
+    pub const fn start(pixel: u32) -> PathState {
+        PathState { throughput: [1.0; 3], active: 1, radiance: [0.0; 3], pixel }
+    }
 }

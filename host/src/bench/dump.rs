@@ -5,7 +5,7 @@
 //! * `<scene>.obj`: `v` lines (three per triangle, in triangle order) and `f` lines; face k is
 //!   triangle id k;
 //! * `<scene>-<rays>-rays.npy`: float32 (N, 8): origin x y z, t_min, direction x y z, t_max
-//!   (directions are not normalised for shadow rays: they end at t = 1 − ε, on the light);
+//!   (directions are not normalised for shadow rays: they end at t = 1 − 1/4096, just before the light);
 //! * `<scene>-<rays>-hit-id.npy`: uint32 (N,): closest-hit triangle id, 4294967295 = miss;
 //!   for shadow rays (any-hit queries) 1 = occluded, 0 = not;
 //! * `<scene>-<rays>-hit-t.npy`: float32 (N,): distance along the ray (closest hit; +inf for a

@@ -17,13 +17,12 @@ pub fn primary(scene: &Scene, size: u32) -> Vec<Ray> {
     (0..size * size).map(|i| camera::primary_ray(&cam, i)).collect()
 }
 
-/// Pixel indices of a `size`² image in Morton (Z-curve) order: groups of 4 are 2×2 quads,
-/// groups of 64 are 8×8 tiles.
-pub fn morton_order(size: u32) -> Vec<u32> {
-    let spread = |v: u32| (0..16).fold(0u64, |m, b| m | (((v as u64 >> b) & 1) << (2 * b)));
-    let mut idx: Vec<u32> = (0..size * size).collect();
-    idx.sort_by_key(|&i| spread(i % size) | (spread(i / size) << 1));
-    idx
+/// The pixels of a `size`² image in the renderer's tiled order (8×8 tiles, Morton order inside;
+/// `camera::pixel`).
+pub fn tiled_order(scene: &Scene, size: u32) -> Vec<u32> {
+    let mut cam = scene.camera.to_pod(size, size);
+    cam.order = kdray_shared::ORDER_TILES;
+    (0..size * size).map(|i| camera::pixel(&cam, i)).collect()
 }
 
 /// Rays of every bounce 0..=max_bounces of the renderer's paths (bounce 0: primary rays;
@@ -34,7 +33,7 @@ pub fn bounces(scene: &Scene, tree: &KdTreeData, size: u32, max_bounces: u32) ->
     let lights = scene.lights();
     let mut rays = primary(scene, size);
     let mut pixels: Vec<u32> = (0..rays.len() as u32).collect();
-    let mut paths = vec![PathState::START; rays.len()];
+    let mut paths: Vec<PathState> = (0..rays.len() as u32).map(PathState::start).collect();
     let mut out = vec![rays.clone()];
     let mut shadow = Vec::new();
     let mut shadow_pixels = Vec::new();

@@ -71,9 +71,6 @@ fn horn_scenes(o: &Options) -> Vec<String> {
 /// Runs `suite` (or every suite for `all`); returns the files written.
 pub fn run_suite(suite: &str, o: &Options) -> Result<Vec<PathBuf>> {
     let mut scenes = Scenes::default();
-    if let Some(g) = o.gpu {
-        g.warm_up(std::time::Duration::from_secs(3))?;
-    }
     let list: Vec<&str> = if suite == "all" { SUITES.to_vec() } else { vec![suite] };
     let mut files = Vec::new();
     for s in list {
@@ -523,23 +520,16 @@ fn visits(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
     Ok(files)
 }
 
-/// Work distribution: the same rays in scanline order and in Morton order (2×2 quads, 8×8
-/// tiles), one thread per ray or persistent threads fetching rays from an atomic counter.
+/// Ray order: the same rays in scanline order and in the renderer's tile order (8×8 tiles,
+/// Morton order inside: `render --ray-order tiles`).
 fn order(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
     let methods = [
         Accel::Kd(Algorithm::Stack),
-        Accel::Persistent(Algorithm::Stack),
         Accel::Kd(Algorithm::ShortStack(3)),
-        Accel::Persistent(Algorithm::ShortStack(3)),
         Accel::Packet(Algorithm::ShortStack(3)),
     ];
     let specs = horn_scenes(o);
     o.progress.set_length((specs.len() * 4 * methods.len()) as u64);
-    let morton = rays::morton_order(o.size);
-    let mut rank = vec![0u32; morton.len()];
-    for (k, p) in morton.iter().enumerate() {
-        rank[*p as usize] = k as u32;
-    }
     let mut rows = Vec::new();
     let mut header = vec!["method".to_string()];
     let mut cells: Vec<Vec<String>> = methods.iter().map(|m| vec![format!("`{}`", m.name())]).collect();
@@ -547,6 +537,11 @@ fn order(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
         let (scene, tree) = scenes.get(spec, &o.build)?;
         let bed = Bed::new(scene, tree, o.gpu, o.size, o.reps)?;
         let (b, shadow, pixels) = rays::bounces(scene, tree, o.size, 0)?;
+        let morton = rays::tiled_order(scene, o.size);
+        let mut rank = vec![0u32; morton.len()];
+        for (k, p) in morton.iter().enumerate() {
+            rank[*p as usize] = k as u32;
+        }
         let primary = b.into_iter().next().unwrap_or_default();
         let primary_m: Vec<_> = morton.iter().map(|&p| primary[p as usize]).collect();
         let mut by_pixel: Vec<usize> = (0..shadow.len()).collect();
@@ -554,9 +549,9 @@ fn order(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
         let shadow_m: Vec<_> = by_pixel.iter().map(|&k| shadow[k]).collect();
         let sets = [
             bed.ray_set("primary", primary, true)?,
-            bed.ray_set("primary in Morton order", primary_m, true)?,
+            bed.ray_set("primary in tile order", primary_m, true)?,
             bed.ray_set("shadow", shadow, false)?,
-            bed.ray_set("shadow in Morton order", shadow_m, false)?,
+            bed.ray_set("shadow in tile order", shadow_m, false)?,
         ];
         for set in &sets {
             header.push(format!("{} {}", scene.name, set.kind));
@@ -569,13 +564,11 @@ fn order(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
         }
     }
     let summary = format!(
-        "## Ray order and persistent threads (Mrays/s)\n\n{}² pixels. Morton order: the same rays sorted along the Z-curve of their pixels (2×2 quads, 8×8 tiles). \
-         Persistent threads: {} threads in workgroups of 64 fetch the next 64 rays from an atomic counter until none are left (Aila & Laine 2009).\n\n{}",
+        "## Ray order (Mrays/s)\n\n{}² pixels. Tile order: the same rays in the order `render --ray-order tiles` traces them (8×8 tiles in rows, Morton order inside a tile: 2×2 quads, 8×4 half tiles).\n\n{}",
         o.size,
-        crate::gpu::kernels::PERSISTENT_THREADS,
         markdown(&header, &cells)
     );
-    finish(o, "order", "Ray order and persistent threads", &summary, &rows)
+    finish(o, "order", "Ray order", &summary, &rows)
 }
 
 /// Every traversal with a GPU kernel, primary and shadow rays, per scene.

@@ -22,12 +22,6 @@ pub enum Kernel {
 /// Short-stack sizes with GPU kernels (`trace_kernels!` in shader-crate).
 pub const GPU_SHORT_STACKS: [u32; 5] = [1, 2, 3, 4, 8];
 
-/// Traversals with GPU persistent-thread kernels (`persistent_kernels!`).
-pub const GPU_PERSISTENT: [Algorithm; 2] = [Algorithm::Stack, Algorithm::ShortStack(3)];
-
-/// Threads a persistent-thread dispatch launches at most (64 × 4096: a few waves of any GPU).
-pub const PERSISTENT_THREADS: u32 = 64 * 4096;
-
 /// Traversals with GPU packet kernels (`packet_kernels!`): Horn et al.'s rows.
 pub const GPU_PACKETS: [Algorithm; 4] = [Algorithm::Stack, Algorithm::Restart, Algorithm::PushDown, Algorithm::ShortStack(3)];
 
@@ -40,7 +34,6 @@ pub const ENTRY_POINTS: &[&str] = &[
     "closest_shortstack4", "any_shortstack4", "closest_shortstack8", "any_shortstack8",
     "closest_packet_stack", "any_packet_stack", "closest_packet_restart", "any_packet_restart",
     "closest_packet_pushdown", "any_packet_pushdown", "closest_packet_shortstack3", "any_packet_shortstack3",
-    "closest_persistent_stack", "any_persistent_stack", "closest_persistent_shortstack3", "any_persistent_shortstack3",
     "traverse_leaves", "closest_leaves", "any_leaves", "closest_fallback", "any_fallback",
 ];
 
@@ -51,9 +44,6 @@ fn accel_suffix(a: Accel) -> Result<&'static str> {
         Accel::Packet(Algorithm::Restart) => "packet_restart",
         Accel::Packet(Algorithm::PushDown) => "packet_pushdown",
         Accel::Packet(Algorithm::ShortStack(3)) => "packet_shortstack3",
-        Accel::Persistent(Algorithm::Stack) => "persistent_stack",
-        Accel::Persistent(Algorithm::ShortStack(3)) => "persistent_shortstack3",
-        Accel::Persistent(_) => bail!("no GPU persistent-thread kernel for {}: built for stack and shortstack:3", a.name()),
         Accel::Decomposed { .. } => bail!("the decomposed pipeline has no single kernel (traverse_leaves, *_leaves, *_fallback)"),
         Accel::Packet(_) => bail!("no GPU packet kernel for {}: built for stack, restart, pushdown, shortstack:3", a.name()),
         Accel::Kd(Algorithm::Stack) => "stack",
@@ -95,7 +85,6 @@ impl Kernel {
     pub fn bindings(self) -> &'static [bool] {
         match self {
             Kernel::CameraRays => &[false, false],
-            Kernel::Closest(Accel::Persistent(_)) | Kernel::Any(Accel::Persistent(_)) => &[true, true, true, true, false, false],
             Kernel::Closest(_) | Kernel::Any(_) => &[true, true, true, true, false],
             Kernel::PathStep => &[false, true, true, true, true, false, false, false],
             Kernel::Accumulate => &[true, true, false, false],
@@ -113,7 +102,7 @@ impl Kernel {
             v.push(Kernel::IntersectLeaves { closest });
             v.push(Kernel::Fallback { closest });
         }
-        let accels = Accel::all().into_iter().chain(GPU_PACKETS.map(Accel::Packet)).chain(GPU_PERSISTENT.map(Accel::Persistent));
+        let accels = Accel::all().into_iter().chain(GPU_PACKETS.map(Accel::Packet));
         for a in accels {
             v.push(Kernel::Closest(a));
             v.push(Kernel::Any(a));
@@ -122,11 +111,10 @@ impl Kernel {
     }
 
     /// Threads a dispatch over `count` work items launches: one per item, one per four rays
-    /// for the packet kernels, a bounded grid for the persistent-thread kernels.
+    /// for the packet kernels.
     pub fn threads(self, count: u32) -> u32 {
         match self {
             Kernel::Closest(Accel::Packet(_)) | Kernel::Any(Accel::Packet(_)) => count.div_ceil(kdray_shared::kdtree::PACKET as u32),
-            Kernel::Closest(Accel::Persistent(_)) | Kernel::Any(Accel::Persistent(_)) => count.min(PERSISTENT_THREADS),
             _ => count,
         }
     }

@@ -17,8 +17,11 @@ static SPIRV: &[u8] = include_bytes!(env!("kdray_shader.spv"));
 /// submission is far below this on any real device.
 const SUBMIT_TIMEOUT: Duration = Duration::from_secs(600);
 
-/// GPU work run before a timed measurement (clock ramp-up, caches).
+/// Work of a measurement run before it is timed (caches).
 const WARM_UP: Duration = Duration::from_millis(100);
+
+/// An idle GPU longer than this is warmed up for a second before the next measurement.
+const IDLE: Duration = Duration::from_millis(250);
 
 pub struct Gpu {
     pub device: wgpu::Device,
@@ -30,6 +33,8 @@ pub struct Gpu {
     module: wgpu::ShaderModule,
     /// Created on first use: drivers compile each entry point when its pipeline is made.
     pipelines: Mutex<HashMap<Kernel, (wgpu::ComputePipeline, wgpu::BindGroupLayout)>>,
+    /// When a timed measurement last finished (to tell how long the GPU has idled).
+    last_timed: Mutex<Option<std::time::Instant>>,
 }
 
 fn device_rank(t: wgpu::DeviceType) -> u32 {
@@ -118,7 +123,7 @@ impl Gpu {
                 ..Default::default()
             })
         };
-        Ok(Gpu { device, queue, info, limits, timestamps, module, pipelines: Mutex::new(HashMap::new()) })
+        Ok(Gpu { device, queue, info, limits, timestamps, module, pipelines: Mutex::new(HashMap::new()), last_timed: Mutex::new(None) })
     }
 
     fn pipeline(&self, k: Kernel) -> Result<(wgpu::ComputePipeline, wgpu::BindGroupLayout)> {
@@ -215,13 +220,13 @@ impl Gpu {
         params: &FrameParams,
         buffers: &[&wgpu::Buffer],
     ) -> Result<()> {
-        self.record_pass(encoder, &Pass { kernel, params: *params, buffers: buffers.to_vec(), clear: None }, None)
+        self.record_pass(encoder, &Pass { kernel, params: *params, buffers: buffers.to_vec() }, None)
     }
 
     /// Records `pass`, writing timestamps at its start and end into queries `2i` and `2i + 1` of
     /// `timer = (queries, i)`.
     fn record_pass(&self, encoder: &mut wgpu::CommandEncoder, pass: &Pass, timer: Option<(&wgpu::QuerySet, u32)>) -> Result<()> {
-        let Pass { kernel, params, buffers, .. } = pass;
+        let Pass { kernel, params, buffers } = pass;
         let kernel = *kernel;
         let (pipeline, bgl) = &self.pipeline(kernel)?;
         assert_eq!(buffers.len(), kernel.bindings().len(), "binding count of {kernel:?}");
@@ -239,9 +244,6 @@ impl Gpu {
             entries: &entries,
         });
         let (gx, gy) = self.grid(kernel.threads(params.count))?;
-        if let Some(b) = pass.clear {
-            encoder.clear_buffer(b, 0, None);
-        }
         let mut cpass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some(kernel.entry_point()?),
             timestamp_writes: timer.map(|(q, i)| wgpu::ComputePassTimestampWrites {
@@ -295,8 +297,14 @@ impl Gpu {
         });
         let mut t = Timing { parts_ms: vec![Vec::new(); passes.len()], ..Default::default() };
         let period = self.queue.get_timestamp_period() as f64 * 1e-6;
-        // Warm-up: at least WARM_UP of GPU work (and 3 runs), so clocks have ramped up and
-        // caches are filled before anything is timed; bounded in runs.
+        // After an idle spell (or at the first measurement) the GPU needs a second of work
+        // before it runs at full speed again (measured on the H100: up to 5× slower before).
+        let idle = self.last_timed.lock().expect("timer").is_none_or(|t| t.elapsed() > IDLE);
+        if idle && self.info.device_type != wgpu::DeviceType::Cpu {
+            self.warm_up(Duration::from_secs(1))?;
+        }
+        // Warm-up: at least WARM_UP of this work (and 3 runs), so caches are filled before
+        // anything is timed; bounded in runs.
         let warm = std::time::Instant::now();
         let mut runs = 0;
         while runs < 3 || (warm.elapsed() < WARM_UP && runs < 1000) {
@@ -326,21 +334,22 @@ impl Gpu {
                 }
             }
         }
+        *self.last_timed.lock().expect("timer") = Some(std::time::Instant::now());
         Ok(t)
     }
 
-    /// Keeps the GPU busy for `d` (bounded kernels of 4 M items each), so that clocks and
+    /// Keeps the GPU busy for `d` (bounded kernels of 1 M items each), so that clocks and
     /// power states have settled before a series of measurements: on the H100 the first
     /// seconds of a process ran the same kernels up to 5× slower.
     pub fn warm_up(&self, d: Duration) -> Result<()> {
-        let n = 1usize << 22;
+        let n = 1usize << 20;
         let out = self.storage::<[u32; 4]>("warm-up", n)?;
         let start = std::time::Instant::now();
         let mut seed = 0;
         while start.elapsed() < d && seed < 100_000 {
             let mut enc = self.encoder();
             let p = FrameParams { count: n as u32, seed, ..Default::default() };
-            for _ in 0..16 {
+            for _ in 0..4 {
                 self.record(&mut enc, Kernel::RngFill, &p, &[&out])?;
             }
             self.submit_wait(enc)?;
@@ -394,14 +403,12 @@ impl Gpu {
     }
 }
 
-/// One dispatch: a kernel, its parameters and its buffers (bindings 1..), and a buffer to
-/// zero before it (the persistent threads' ray counter).
+/// One dispatch: a kernel, its parameters and its buffers (bindings 1..).
 #[derive(Clone)]
 pub struct Pass<'a> {
     pub kernel: Kernel,
     pub params: FrameParams,
     pub buffers: Vec<&'a wgpu::Buffer>,
-    pub clear: Option<&'a wgpu::Buffer>,
 }
 
 /// Repeated measurements of a sequence of dispatches, in milliseconds: wall time, GPU time of

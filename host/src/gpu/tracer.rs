@@ -9,7 +9,7 @@ use crate::trace::{Accel, RenderOutput, Tracer};
 use anyhow::Result;
 use indicatif::ProgressBar;
 use kdray_shared::kdtree::LeafRef;
-use kdray_shared::{Camera, FrameParams, Hit, PathState, Ray, ShadeTerms};
+use kdray_shared::{camera, Camera, FrameParams, Hit, PathState, Ray, ShadeTerms};
 
 /// Upper bound on ray-triangle tests of one brute-force submission.
 const MAX_TESTS_PER_SUBMIT: u64 = 1 << 30;
@@ -28,8 +28,6 @@ pub struct GpuTracer<'g> {
     has_mirror: bool,
     tri_count: u64,
     light_count: u32,
-    /// Ray counter of the persistent-thread kernels.
-    counter: wgpu::Buffer,
 }
 
 /// The decomposed pipeline's per-batch buffers: leaf lists (`capacity` entries per ray) and
@@ -56,7 +54,6 @@ impl<'g> GpuTracer<'g> {
             lights: gpu.upload("light", &lights)?,
             tri_count: scene.triangles.len() as u64,
             light_count: lights.len() as u32,
-            counter: gpu.upload("ray counter", &[0u32])?,
         })
     }
 
@@ -124,20 +121,15 @@ impl<'g> GpuTracer<'g> {
                 let params = FrameParams { leaf_capacity: capacity, ..*p };
                 let with = |extra: &[&'a wgpu::Buffer]| [&[rays][..], &scene[..], extra].concat();
                 vec![
-                    Pass { kernel: Kernel::TraverseLeaves, params, buffers: with(&[&l.lists, &l.status]), clear: None },
-                    Pass { kernel: Kernel::IntersectLeaves { closest }, params, buffers: with(&[&l.lists, &l.status, out]), clear: None },
-                    Pass { kernel: Kernel::Fallback { closest }, params, buffers: with(&[&l.status, out]), clear: None },
+                    Pass { kernel: Kernel::TraverseLeaves, params, buffers: with(&[&l.lists, &l.status]) },
+                    Pass { kernel: Kernel::IntersectLeaves { closest }, params, buffers: with(&[&l.lists, &l.status, out]) },
+                    Pass { kernel: Kernel::Fallback { closest }, params, buffers: with(&[&l.status, out]) },
                 ]
             }
             (Accel::Decomposed { .. }, None) => anyhow::bail!("the decomposed pipeline needs leaf-list buffers"),
-            (Accel::Persistent(_), _) => {
-                let kernel = if closest { Kernel::Closest(accel) } else { Kernel::Any(accel) };
-                let buffers = vec![rays, scene[0], scene[1], scene[2], out, &self.counter];
-                vec![Pass { kernel, params: *p, buffers, clear: Some(&self.counter) }]
-            }
             _ => {
                 let kernel = if closest { Kernel::Closest(accel) } else { Kernel::Any(accel) };
-                vec![Pass { kernel, params: *p, buffers: vec![rays, scene[0], scene[1], scene[2], out], clear: None }]
+                vec![Pass { kernel, params: *p, buffers: vec![rays, scene[0], scene[1], scene[2], out] }]
             }
         })
     }
@@ -180,7 +172,7 @@ impl Tracer for GpuTracer<'_> {
         let n = (cam.width * cam.height) as usize;
         let b = self.batch_size(accel, n);
         let fb = self.frame_buffers(accel, b)?;
-        let mut out = RenderOutput { width: cam.width, height: cam.height, hits: Vec::with_capacity(n), radiance: Vec::with_capacity(n) };
+        let mut out = RenderOutput { width: cam.width, height: cam.height, hits: vec![Hit::NONE; n], radiance: vec![[0.0; 4]; n] };
         progress.set_length(n as u64);
         let mut first = 0;
         while first < n {
@@ -189,8 +181,14 @@ impl Tracer for GpuTracer<'_> {
             let mut enc = g.encoder();
             g.record_passes(&mut enc, &self.frame_passes(accel, &p, &fb)?)?;
             g.submit_wait(enc)?;
-            out.hits.extend(g.read::<Hit>(&fb.primary_hits, count)?);
-            out.radiance.extend(g.read::<[f32; 4]>(&fb.radiance, count)?);
+            // Results come in tracing order: put each where its pixel is.
+            let hits = g.read::<Hit>(&fb.primary_hits, count)?;
+            let radiance = g.read::<[f32; 4]>(&fb.radiance, count)?;
+            for (k, (h, r)) in hits.into_iter().zip(radiance).enumerate() {
+                let px = camera::pixel(cam, (first + k) as u32) as usize;
+                out.hits[px] = h;
+                out.radiance[px] = r;
+            }
             first += count;
             progress.inc(count as u64);
         }
@@ -239,7 +237,7 @@ impl GpuTracer<'_> {
     /// (reflect or shade), shadow rays (only with lights) and accumulation. Bounce 0 writes its
     /// hits into `primary_hits`.
     pub fn frame_passes<'a>(&'a self, accel: Accel, p: &FrameParams, fb: &'a FrameBuffers) -> Result<Vec<Pass<'a>>> {
-        let mut passes = vec![Pass { kernel: Kernel::CameraRays, params: *p, buffers: vec![&fb.rays, &fb.paths], clear: None }];
+        let mut passes = vec![Pass { kernel: Kernel::CameraRays, params: *p, buffers: vec![&fb.rays, &fb.paths] }];
         for bounce in 0..=p.max_bounces {
             let p = FrameParams { bounce, ..*p };
             let hits = if bounce == 0 { &fb.primary_hits } else { &fb.hits };
@@ -248,12 +246,11 @@ impl GpuTracer<'_> {
                 kernel: Kernel::PathStep,
                 params: p,
                 buffers: vec![&fb.rays, &self.tris, hits, &self.materials, &self.lights, &fb.paths, &fb.shadow, &fb.terms],
-                clear: None,
             });
             if self.light_count > 0 {
                 passes.extend(self.trace_passes(accel, false, &p, &fb.shadow, &fb.occluded, fb.lists.as_ref())?);
             }
-            passes.push(Pass { kernel: Kernel::Accumulate, params: p, buffers: vec![&fb.terms, &fb.occluded, &fb.paths, &fb.radiance], clear: None });
+            passes.push(Pass { kernel: Kernel::Accumulate, params: p, buffers: vec![&fb.terms, &fb.occluded, &fb.paths, &fb.radiance] });
         }
         Ok(passes)
     }

@@ -36,7 +36,7 @@ impl CameraSpec {
             top_left: top_left.to_array(),
             height,
             du: du.to_array(),
-            _pad0: 0,
+            order: kdray_shared::ORDER_SCANLINE,
             dv: dv.to_array(),
             _pad1: 0,
         }
