@@ -177,13 +177,7 @@ fn packets_and_decomposed_pipeline_render_the_same_image() {
     let tree = build(&scene.triangles, &BuildOptions::default());
     let cam = scene.camera.to_pod(96, 96);
     let pb = indicatif::ProgressBar::hidden();
-    let cpu = CpuTracer::new(&scene, Some(&tree));
-    let gpu = common::gpu().map(|g| GpuTracer::new(g, &scene, Some(&tree)).unwrap());
-    let mut tracers: Vec<&dyn Tracer> = vec![&cpu];
-    if let Some(g) = &gpu {
-        tracers.push(g);
-    }
-    for t in tracers {
+    for_each_runtime(&scene, &tree, |t| {
         let base = t.render(Accel::Kd(Algorithm::Stack), &cam, 5, 4, &pb).unwrap();
         assert!(base.hits.iter().filter(|h| h.is_hit()).count() > 8000);
         let mut variants = vec![Accel::Decomposed { capacity: 1 }, Accel::Decomposed { capacity: 16 }];
@@ -195,7 +189,7 @@ fn packets_and_decomposed_pipeline_render_the_same_image() {
             assert_eq!(img.hits, base.hits, "{} {}: primary hits differ", t.device_name(), accel.name());
             assert_eq!(img.radiance, base.radiance, "{} {}: radiance differs", t.device_name(), accel.name());
         }
-    }
+    });
 }
 
 /// `render --ray-order tiles`: the tile order is a bijection of the pixels for any image size,
@@ -224,18 +218,20 @@ fn tiled_ray_order_renders_the_same_image() {
     let scan = scene.camera.to_pod(90, 70);
     let tiles = kdray_shared::Camera { order: kdray_shared::ORDER_TILES, ..scan };
     let pb = indicatif::ProgressBar::hidden();
-    let cpu = CpuTracer::new(&scene, Some(&tree));
-    let gpu = common::gpu().map(|g| GpuTracer::new(g, &scene, Some(&tree)).unwrap());
-    let mut tracers: Vec<&dyn Tracer> = vec![&cpu];
-    if let Some(g) = &gpu {
-        tracers.push(g);
-    }
-    for t in tracers {
+    for_each_runtime(&scene, &tree, |t| {
         for accel in [Accel::Kd(Algorithm::ShortStack(3)), Accel::Packet(Algorithm::ShortStack(3))] {
             let a = t.render(accel, &scan, 9, 4, &pb).unwrap();
             let b = t.render(accel, &tiles, 9, 4, &pb).unwrap();
             assert_eq!(a.hits, b.hits, "{} {}", t.device_name(), accel.name());
             assert_eq!(a.radiance, b.radiance, "{} {}", t.device_name(), accel.name());
         }
+    });
+}
+
+/// Runs `f` on the native runtime and, where there is a GPU adapter, on the GPU runtime.
+fn for_each_runtime(scene: &kdray::Scene, tree: &kdray::kdtree::KdTreeData, mut f: impl FnMut(&dyn Tracer)) {
+    f(&CpuTracer::new(scene, Some(tree)));
+    if let Some(g) = common::gpu() {
+        f(&GpuTracer::new(g, scene, Some(tree)).unwrap());
     }
 }

@@ -82,7 +82,7 @@ fn check_on(name: &str, scene: &Scene, tree: &KdTreeData, rays: &[Ray], hard: us
     // Packets and the decomposed pipeline on the rays grouped by octant.
     let order = octant_order(rays);
     let grouped: Vec<Ray> = order.iter().map(|&i| rays[i]).collect();
-    let coherent = cpu.coherent_packets(&grouped).unwrap();
+    let coherent = cpu.coherent_packets(&grouped);
     println!("{name}: {coherent} of {} packets coherent", grouped.len().div_ceil(4));
     for accel in cpu_grouped() {
         let hits = cpu.closest_hits(accel, &grouped).unwrap();
@@ -220,7 +220,7 @@ fn run_scene(name: &str, scene: &Scene, n_random: usize) {
     let (rays, hard) = hard_rays(scene, &tree, n_random, 11);
     let hits = check(name, scene, &tree, &rays, hard);
     let grouped: Vec<Ray> = octant_order(&rays[hard..]).into_iter().map(|i| rays[hard + i]).collect();
-    let coherent = CpuTracer::new(scene, Some(&tree)).coherent_packets(&grouped).unwrap();
+    let coherent = CpuTracer::new(scene, Some(&tree)).coherent_packets(&grouped);
     assert!(4 * coherent >= grouped.len() * 9 / 10, "{name}: only {coherent} of the random rays' packets are coherent");
     let hit_frac = hits.iter().filter(|h| h.is_hit()).count() as f64 / hits.len() as f64;
     println!("{name}: {} rays, {:.1} % hit, tree {:?}", rays.len(), 100.0 * hit_frac, tree.stats);

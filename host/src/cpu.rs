@@ -20,21 +20,6 @@ pub struct CpuTracer<'s> {
     has_mirror: bool,
 }
 
-/// A query the CPU runtime can start for a ray.
-trait Start: Query + BruteForce + Sized {
-    fn start(ray: &Ray) -> Self;
-}
-impl Start for Closest {
-    fn start(ray: &Ray) -> Self {
-        Closest::new(ray)
-    }
-}
-impl Start for AnyHit {
-    fn start(ray: &Ray) -> Self {
-        AnyHit::new(ray)
-    }
-}
-
 /// Up to `PACKET` rays padded with invalid ones.
 fn group(rays: &[Ray]) -> [Ray; PACKET] {
     let mut g = [Ray::default(); PACKET];
@@ -59,8 +44,8 @@ impl<'s> CpuTracer<'s> {
     }
 
     /// Answers `Q` for four rays with `accel`.
-    fn trace4<Q: Start, S: Stats>(&self, accel: Accel, rays: &[Ray; PACKET], stats: &mut S) -> Result<[Q; PACKET]> {
-        let mut q = rays.each_ref().map(Q::start);
+    fn trace4<Q: Query + BruteForce, S: Stats>(&self, accel: Accel, rays: &[Ray; PACKET], stats: &mut S) -> Result<[Q; PACKET]> {
+        let mut q = rays.each_ref().map(Q::new);
         match accel {
             Accel::Brute => q.iter_mut().zip(rays).for_each(|(q, r)| q.brute(r, self.tris)),
             Accel::Kd(alg) => {
@@ -76,7 +61,7 @@ impl<'s> CpuTracer<'s> {
                     let l = kdtree::record_leaves(&tree, r, capacity, stats);
                     if !kdtree::intersect_leaves(&tree, r, &l.entries, 0, l.status(), q, stats) {
                         // The list overflowed before the answer was settled: trace it whole.
-                        *q = Q::start(r);
+                        *q = Q::new(r);
                         kdtree::run(kdtree::Algorithm::Stack, &tree, r, q, stats);
                     }
                 }
@@ -129,17 +114,8 @@ impl<'s> CpuTracer<'s> {
 
     /// How many of the groups of four rays the packet traversal takes together (the others go
     /// ray by ray because their direction signs differ).
-    pub fn coherent_packets(&self, rays: &[Ray]) -> Result<usize> {
-        let tree = self.tree()?;
-        Ok(rays
-            .par_chunks(PACKET)
-            .filter(|c| {
-                let g = group(c);
-                let mut q = g.each_ref().map(AnyHit::new);
-                // Restart has no stack to allocate: the cheapest way to ask.
-                kdtree::traverse_packet::<_, _, _, false>(&tree, &g, &mut q, &mut kdtree::NoStack::new(), &mut NoStats)
-            })
-            .count())
+    pub fn coherent_packets(&self, rays: &[Ray]) -> usize {
+        rays.par_chunks(PACKET).filter(|c| kdtree::direction_signs(&group(c)).is_some()).count()
     }
 }
 
@@ -200,7 +176,6 @@ impl Tracer for CpuTracer<'_> {
                     for l in 0..m {
                         (shadow[l], terms[l]) = shade::path_step(
                             seed,
-                            paths[l].pixel,
                             bounce,
                             max_bounces,
                             &mut rays[l],

@@ -9,7 +9,7 @@
 use kdray_shared::aabb::Aabb;
 use kdray_shared::kdtree::{
     intersect_leaves, packet_or_single, record_leaves, traverse, AnyHit, Closest, Entry, FullStack, KdNode,
-    KdTree, LeafRef, NoStack, NoStats, PacketEntry, ShortStack, MAX_DEPTH, PACKET,
+    KdTree, LeafRef, NoStack, NoStats, PacketEntry, Query, ShortStack, MAX_DEPTH, PACKET,
 };
 use kdray_shared::brute::BruteForce;
 use kdray_shared::{
@@ -279,7 +279,6 @@ pub fn path_step(
         let mut path = paths[k];
         let (shadow, t) = shade::path_step(
             params.seed,
-            path.pixel,
             params.bounce,
             params.max_bounces,
             &mut ray,

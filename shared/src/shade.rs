@@ -97,12 +97,12 @@ pub fn light_sample(
 /// reflects `ray` in place and scales the throughput by its colour; anything else is shaded
 /// (emission + one shadow ray) and ends the path. Returns the shadow ray (`NO_RAY` if none) and
 /// the terms to `accumulate`, already weighted by the path's throughput. A path that ends
-/// leaves `NO_RAY` in `ray`, so later bounces trace nothing for it.
+/// leaves `NO_RAY` in `ray`, so later bounces trace nothing for it. The light sample is drawn
+/// from the random stream of the path's pixel.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 pub fn path_step(
     seed: u32,
-    pixel: u32,
     bounce: u32,
     max_bounces: u32,
     ray: &mut Ray,
@@ -134,7 +134,7 @@ pub fn path_step(
     }
     // Each bounce draws from its own random stream.
     let stream = seed ^ bounce.wrapping_mul(0x9E37_79B9);
-    let (shadow, t) = light_sample(stream, pixel, ray, hit, tris, materials, lights, light_count);
+    let (shadow, t) = light_sample(stream, path.pixel, ray, hit, tris, materials, lights, light_count);
     terms.base = mul3(path.throughput, t.base);
     terms.direct = mul3(path.throughput, t.direct);
     path.active = 0;

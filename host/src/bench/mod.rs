@@ -171,15 +171,17 @@ impl<'a> Bed<'a> {
         let per_ray = |f: fn(&Counters) -> u32| counts.iter().map(|c| f(c) as f64).sum::<f64>() / n.max(1) as f64;
         let mut notes = vec![spread_text];
         if let Accel::Packet(_) = accel {
-            let coherent = self.cpu.coherent_packets(&set.rays)?;
+            let coherent = self.cpu.coherent_packets(&set.rays);
             notes.push(format!("{:.1} % of packets coherent", 100.0 * coherent as f64 / n.div_ceil(4).max(1) as f64));
         }
+        let mut fallbacks = None;
         if let Accel::Decomposed { capacity } = accel {
-            let fallbacks = self.cpu.decomposed_fallbacks(&set.rays, capacity, set.closest)?;
+            let f = self.cpu.decomposed_fallbacks(&set.rays, capacity, set.closest)?;
+            fallbacks = Some(f);
             notes.push(format!(
-                "fallback {fallbacks} rays ({:.2} %), leaf lists {:.1} MiB",
-                100.0 * fallbacks as f64 / n.max(1) as f64,
-                (n * capacity as usize * std::mem::size_of::<kdray_shared::kdtree::LeafRef>()) as f64 / 1048576.0
+                "fallback {f} rays ({:.2} %), leaf lists {:.1} MiB",
+                100.0 * f as f64 / n.max(1) as f64,
+                leaf_list_mib(n, capacity)
             ));
             if parts.len() == 3 {
                 notes.push(format!("GPU ms traverse {:.3} / intersect {:.3} / fallback {:.3}", parts[0], parts[1], parts[2]));
@@ -201,6 +203,7 @@ impl<'a> Bed<'a> {
             vs_stack: None,
             oracle_mismatch: mismatch(&sample, &set.oracle),
             reference_mismatch: mismatch(&got, &set.reference),
+            fallbacks,
             notes: notes.join("; "),
         })
     }
@@ -212,6 +215,11 @@ fn spread_note(ms: &[f64], attempts: usize) -> String {
     let max = ms.iter().copied().fold(0.0, f64::max);
     let retried = if attempts > 1 { format!(" (best of {attempts} attempts)") } else { String::new() };
     format!("ms min {min:.3} / max {max:.3} of {}{retried}", ms.len())
+}
+
+/// GPU memory of the leaf lists of `rays` rays with `capacity` entries each, in MiB.
+pub fn leaf_list_mib(rays: usize, capacity: u32) -> f64 {
+    (rays * capacity as usize * std::mem::size_of::<kdray_shared::kdtree::LeafRef>()) as f64 / 1048576.0
 }
 
 /// Rays of one type with what their answers are checked against.

@@ -32,32 +32,30 @@ pub fn bounces(scene: &Scene, tree: &KdTreeData, size: u32, max_bounces: u32) ->
     let cpu = CpuTracer::new(scene, Some(tree));
     let lights = scene.lights();
     let mut rays = primary(scene, size);
-    let mut pixels: Vec<u32> = (0..rays.len() as u32).collect();
     let mut paths: Vec<PathState> = (0..rays.len() as u32).map(PathState::start).collect();
     let mut out = vec![rays.clone()];
     let mut shadow = Vec::new();
     let mut shadow_pixels = Vec::new();
     for bounce in 0..=max_bounces {
         let hits = cpu.closest_hits(Accel::Kd(Algorithm::Stack), &rays)?;
-        let mut next = (Vec::new(), Vec::new(), Vec::new());
+        let mut next = (Vec::new(), Vec::new());
         for (k, (ray, hit)) in rays.iter().zip(&hits).enumerate() {
             let mut ray = *ray;
             let mut path = paths[k];
             let (s, _) = shade::path_step(
-                SEED, pixels[k], bounce, max_bounces, &mut ray, hit, &mut path,
+                SEED, bounce, max_bounces, &mut ray, hit, &mut path,
                 &scene.triangles, &scene.materials, &lights, lights.len() as u32,
             );
             if bounce == 0 && s.is_valid() {
                 shadow.push(s);
-                shadow_pixels.push(pixels[k]);
+                shadow_pixels.push(path.pixel);
             }
             if path.active != 0 {
                 next.0.push(ray);
-                next.1.push(pixels[k]);
-                next.2.push(path);
+                next.1.push(path);
             }
         }
-        (rays, pixels, paths) = next;
+        (rays, paths) = next;
         if bounce < max_bounces {
             out.push(rays.clone());
         }

@@ -233,7 +233,7 @@ fn bounces(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
             }
             let set = bed.ray_set(format!("reflection {n}"), r, true)?;
             dump_set(o, &bed, &set)?;
-            let coherent = bed.cpu.coherent_packets(&set.rays)? as f64 / set.rays.len().div_ceil(4) as f64;
+            let coherent = bed.cpu.coherent_packets(&set.rays) as f64 / set.rays.len().div_ceil(4) as f64;
             let mut line = vec![n.to_string(), set.rays.len().to_string(), format!("{:.1} %", 100.0 * coherent)];
             for (m, accel) in methods.iter().enumerate() {
                 let row = bed.measure(&set, *accel)?;
@@ -328,7 +328,8 @@ const STAGES: [&str; 5] = ["traverse", "intersect", "fallback", "trace", "shade"
 /// the decomposed pipeline, next to the monolithic short-stack kernels, with the image
 /// difference between the two (0 expected), fallback rays and leaf-list memory.
 fn breakdown(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
-    let decomposed = Accel::Decomposed { capacity: crate::trace::DEFAULT_LEAF_CAPACITY };
+    let capacity = crate::trace::DEFAULT_LEAF_CAPACITY;
+    let decomposed = Accel::Decomposed { capacity };
     let monolithic = Accel::Kd(Algorithm::ShortStack(3));
     let mut specs = horn_scenes(o);
     if o.scenes.is_none() {
@@ -342,9 +343,12 @@ fn breakdown(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
         let (scene, tree) = scenes.get(spec, &o.build)?;
         let bed = Bed::new(scene, tree, o.gpu, o.size, o.reps)?;
         let (primary, shadow) = primary_and_shadow(o, &bed)?;
+        let mut fallbacks = 0;
         for set in [&primary, &shadow] {
             for accel in [decomposed, monolithic] {
-                rows.push(bed.measure(set, accel)?);
+                let row = bed.measure(set, accel)?;
+                fallbacks += row.fallbacks.unwrap_or(0);
+                rows.push(row);
                 o.progress.inc(1);
             }
         }
@@ -353,8 +357,7 @@ fn breakdown(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
         let a = bed.tracer().render(decomposed, &cam, 1, 4, &pb)?;
         let b = bed.tracer().render(monolithic, &cam, 1, 4, &pb)?;
         let differ = a.radiance.iter().zip(&b.radiance).zip(a.hits.iter().zip(&b.hits)).filter(|((x, y), (h, k))| x != y || h.prim != k.prim).count();
-        let fallbacks = bed.cpu.decomposed_fallbacks(&primary.rays, 16, true)? + bed.cpu.decomposed_fallbacks(&shadow.rays, 16, false)?;
-        let list_mib = (primary.rays.len() * 16 * std::mem::size_of::<kdray_shared::kdtree::LeafRef>()) as f64 / 1048576.0;
+        let list_mib = super::leaf_list_mib(primary.rays.len(), capacity);
         let Some(g) = &bed.gpu else {
             cells.push(vec![scene.name.clone(), scene.triangles.len().to_string(), "–".into(), "–".into(), "–".into(), "–".into(), "–".into(), "–".into(), "–".into(), fallbacks.to_string(), format!("{list_mib:.1}"), differ.to_string()]);
             continue;
@@ -390,9 +393,10 @@ fn breakdown(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
     let header: Vec<String> = ["scene", "triangles", "pipeline", "frame GPU ms", "traverse", "intersect", "fallback", "trace (monolithic)", "shade", "fallback rays", "leaf lists MiB", "pixels differing"].map(String::from).to_vec();
     let summary = format!(
         "## Time per stage of a frame\n\nOne {}² frame as `render` traces it (primary rays, mirror bounces where the scene has mirrors, one shadow ray per pixel), GPU time per pass from timestamp queries, summed per stage \
-         (shade = camera rays, path step and accumulation). The decomposed pipeline lists up to 16 leaves per ray; rays whose list overflows before their answer is settled are finished by the full-stack kernel (fallback). \
+         (shade = camera rays, path step and accumulation). The decomposed pipeline lists up to {} leaves per ray; rays whose list overflows before their answer is settled are finished by the full-stack kernel (fallback). \
          Pixels differing: hit id or radiance different from the monolithic render (0 expected). Frolov & Ignatenko measured 15 % / 74 % / 11 % (traverse / intersect / shade) on their conference scene and 46 % / 45 % traverse / intersect on 1.5 M triangles.\n\n{}",
         o.size,
+        capacity,
         markdown(&header, &cells)
     );
     let mut files = finish(o, "breakdown", "Decomposed pipeline: traverse / intersect / shade", &summary, &rows)?;
@@ -441,7 +445,7 @@ fn build(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
         o.progress.inc(1);
     }
     let name = format!("build-{}", dev(o));
-    write_cells(&o.out, &name, "kd-tree build (SAH, Wald & Havran O(N log N))", &device_line(None), &header, &cells)?;
+    write_cells(&o.out, &name, "kd-tree build (SAH, Wald & Havran O(N log N))", &device_line(None), "", &header, &cells)?;
     let mut files = vec![o.out.join(format!("{name}.csv")), o.out.join(format!("{name}.md"))];
     plot(o, &mut files, "build", |p| {
         bar_chart(p, &BarChart { title: format!("kd-tree build time per million triangles ({})", super::machine()), y_label: "s per 10^6 triangles".into(), categories: bars.iter().map(|b| b.0.clone()).collect(), series: vec![("build".into(), bars.iter().map(|b| b.1).collect())], stacked: false })
@@ -509,11 +513,9 @@ fn visits(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
     sh.extend(names.iter().cloned());
     let name = format!("visits-{}", dev(o));
     let title = "Node visits relative to the full stack (Horn et al.: kd-restart +166 %, short-stack(1) +25 %, short-stack(3) +3 %)";
-    write_cells(&o.out, &name, title, "native counting run (device independent)", &header, &cells)?;
-    let md_path = o.out.join(format!("{name}.md"));
-    let body = std::fs::read_to_string(&md_path)?;
-    std::fs::write(&md_path, body.replacen("\n\n|", &format!("\n\n## Summary ({}² primary rays)\n\n{}\n## All rows\n\n|", o.size, markdown(&sh, &summary_cells)), 1))?;
-    let mut files = vec![o.out.join(format!("{name}.csv")), md_path];
+    let summary = format!("## Summary ({}² primary rays)\n\n{}\n", o.size, markdown(&sh, &summary_cells));
+    write_cells(&o.out, &name, title, "native counting run (device independent)", &summary, &header, &cells)?;
+    let mut files = vec![o.out.join(format!("{name}.csv")), o.out.join(format!("{name}.md"))];
     plot(o, &mut files, "visits", |p| {
         line_chart(p, &LineChart { title: "Short-stack size against extra node visits (primary rays)".into(), x_label: "short-stack entries".into(), y_label: "% more node visits than the full stack".into(), x_log: false, y_log: false, series })
     });

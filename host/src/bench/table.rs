@@ -28,6 +28,8 @@ pub struct Row {
     pub vs_stack: Option<f64>,
     pub oracle_mismatch: f64,
     pub reference_mismatch: f64,
+    /// Decomposed pipeline: rays whose leaf list overflowed before the answer was settled.
+    pub fallbacks: Option<usize>,
     pub notes: String,
 }
 
@@ -45,7 +47,6 @@ fn opt(v: Option<f64>, p: usize) -> String {
 /// Writes `name.csv` (every row) and `name.md` (`title`, the header, `summary` Markdown, then
 /// every row) into `dir`.
 pub fn write_rows(dir: &Path, name: &str, title: &str, device: &str, summary: &str, rows: &[Row]) -> Result<()> {
-    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let date = today();
     let machine = machine();
     let mut csv = String::from(
@@ -54,13 +55,15 @@ pub fn write_rows(dir: &Path, name: &str, title: &str, device: &str, summary: &s
     for r in rows {
         writeln!(
             csv,
-            "{date},\"{machine}\",\"{device}\",{},{},{},{},{},{},{},{:.3},{:.3},{:.3},{:.3},{:.4},{},{:.3e},{:.3e},\"{}\"",
-            r.scene,
+            "{date},{},{},{},{},{},{},{},{},{},{:.3},{:.3},{:.3},{:.3},{:.4},{},{:.3e},{:.3e},{}",
+            csv_cell(&machine),
+            csv_cell(device),
+            csv_cell(&r.scene),
             r.triangles,
             r.resolution,
-            r.ray_type,
+            csv_cell(&r.ray_type),
             r.rays,
-            r.method,
+            csv_cell(&r.method),
             opt(r.mrays_gpu, 3),
             r.mrays_wall,
             r.nodes,
@@ -70,7 +73,7 @@ pub fn write_rows(dir: &Path, name: &str, title: &str, device: &str, summary: &s
             opt(r.vs_stack, 4),
             r.oracle_mismatch,
             r.reference_mismatch,
-            r.notes.replace('"', "'")
+            csv_cell(&r.notes)
         )?;
     }
     let mut md = format!(
@@ -104,9 +107,26 @@ pub fn write_rows(dir: &Path, name: &str, title: &str, device: &str, summary: &s
             r.notes
         )?;
     }
+    save(dir, name, &csv, &md)
+}
+
+/// A CSV cell: quoted when it holds a comma or a quote (quotes inside become apostrophes).
+fn csv_cell(c: &str) -> String {
+    if c.contains(',') || c.contains('"') {
+        format!("\"{}\"", c.replace('"', "'"))
+    } else {
+        c.to_string()
+    }
+}
+
+/// Writes `dir/name.csv` and `dir/name.md`, creating `dir`.
+fn save(dir: &Path, name: &str, csv: &str, md: &str) -> Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let base = dir.join(name);
-    std::fs::write(base.with_extension("csv"), csv)?;
-    std::fs::write(base.with_extension("md"), md)?;
+    for (ext, text) in [("csv", csv), ("md", md)] {
+        let path = base.with_extension(ext);
+        std::fs::write(&path, text).with_context(|| format!("cannot write {}", path.display()))?;
+    }
     Ok(())
 }
 
@@ -120,19 +140,16 @@ pub fn markdown(header: &[String], rows: &[Vec<String>]) -> String {
 }
 
 /// Writes `name.csv` and `name.md` from string cells (date, machine and device columns
-/// added in front of the CSV), for suites whose rows are not timed ray batches.
-pub fn write_cells(dir: &Path, name: &str, title: &str, device: &str, header: &[String], rows: &[Vec<String>]) -> Result<()> {
-    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+/// added in front of the CSV), for suites whose rows are not timed ray batches; `summary`
+/// (Markdown) goes before the table of all rows.
+pub fn write_cells(dir: &Path, name: &str, title: &str, device: &str, summary: &str, header: &[String], rows: &[Vec<String>]) -> Result<()> {
     let date = today();
     let machine = machine();
-    let quote = |c: &str| if c.contains(',') || c.contains('"') { format!("\"{}\"", c.replace('"', "'")) } else { c.to_string() };
-    let mut csv = format!("date,machine,device,{}\n", header.iter().map(|h| quote(h)).collect::<Vec<_>>().join(","));
+    let mut csv = format!("date,machine,device,{}\n", header.iter().map(|h| csv_cell(h)).collect::<Vec<_>>().join(","));
     for r in rows {
-        writeln!(csv, "{date},{},{},{}", quote(&machine), quote(device), r.iter().map(|c| quote(c)).collect::<Vec<_>>().join(","))?;
+        writeln!(csv, "{date},{},{},{}", csv_cell(&machine), csv_cell(device), r.iter().map(|c| csv_cell(c)).collect::<Vec<_>>().join(","))?;
     }
-    let md = format!("# {title}\n\nDate {date}; machine {machine}; device {device}.\n\n{}", markdown(header, rows));
-    let base = dir.join(name);
-    std::fs::write(base.with_extension("csv"), csv)?;
-    std::fs::write(base.with_extension("md"), md)?;
-    Ok(())
+    let rows_heading = if summary.is_empty() { "" } else { "## All rows\n\n" };
+    let md = format!("# {title}\n\nDate {date}; machine {machine}; device {device}.\n\n{summary}{rows_heading}{}", markdown(header, rows));
+    save(dir, name, &csv, &md)
 }

@@ -34,7 +34,7 @@ mod single;
 mod stack;
 
 pub use leaf_list::{intersect_leaves, record_leaves, LeafList, LeafRef, LEAF_OVERFLOW, MAX_LEAF_LIST};
-pub use packet::{packet_or_single, run_packet, traverse_packet, PacketEntry, PACKET};
+pub use packet::{direction_signs, packet_or_single, run_packet, traverse_packet, PacketEntry, PACKET};
 pub use query::{AnyHit, Closest, Query, Visitor};
 pub use single::{any_hit, closest_hit, run, traverse, Algorithm, MAX_SHORT_STACK};
 pub use stack::{Entry, FullStack, NoStack, ShortStack, Stack};

@@ -57,6 +57,37 @@ fn pick(v: [Vec4; 3], k: usize) -> Vec4 {
     }
 }
 
+/// Whether a packet is coherent: its valid rays have non-zero direction components of one sign
+/// on every axis. Returns the signs as bits (bit a set: positive along axis a), or `None` if
+/// it is not (a packet without valid rays is coherent).
+#[inline(always)]
+pub fn direction_signs(rays: &[Ray; PACKET]) -> Option<u32> {
+    let mut sign = [0i32; 3];
+    let mut l = 0;
+    while l < PACKET {
+        if rays[l].is_valid() {
+            let id = inv_dir(rays[l].dir);
+            let mut a = 0;
+            while a < 3 {
+                let s = if id[a].is_infinite() {
+                    0
+                } else if id[a] > 0.0 {
+                    1
+                } else {
+                    -1
+                };
+                if s == 0 || (sign[a] != 0 && sign[a] != s) {
+                    return None;
+                }
+                sign[a] = s;
+                a += 1;
+            }
+        }
+        l += 1;
+    }
+    Some((sign[0] >= 0) as u32 | ((sign[1] >= 0) as u32) << 1 | ((sign[2] >= 0) as u32) << 2)
+}
+
 /// Traverses the four rays together if they are coherent (see the module notes) and returns
 /// `true`; returns `false` without touching `q` otherwise.
 #[inline(always)]
@@ -76,8 +107,11 @@ pub fn traverse_packet<Q: Query, K: Stack<PacketEntry>, S: Stats, const PUSHDOWN
     let mut t_min = [0.0f32; PACKET];
     let mut t0a = [0.0f32; PACKET];
     let mut t1a = [0.0f32; PACKET];
+    let positive = match direction_signs(rays) {
+        Some(p) => p,
+        None => return false,
+    };
     let mut valid = 0u32;
-    let mut sign = [0i32; 3];
     let mut l = 0;
     while l < PACKET {
         let ray = &rays[l];
@@ -86,17 +120,6 @@ pub fn traverse_packet<Q: Query, K: Stack<PacketEntry>, S: Stats, const PUSHDOWN
             let id = inv_dir(ray.dir);
             let mut a = 0;
             while a < 3 {
-                let s = if id[a].is_infinite() {
-                    0
-                } else if id[a] > 0.0 {
-                    1
-                } else {
-                    -1
-                };
-                if s == 0 || (sign[a] != 0 && sign[a] != s) {
-                    return false;
-                }
-                sign[a] = s;
                 o[a][l] = ray.origin[a];
                 inv[a][l] = id[a];
                 a += 1;
@@ -141,7 +164,7 @@ pub fn traverse_packet<Q: Query, K: Stack<PacketEntry>, S: Stats, const PUSHDOWN
         if !node.is_leaf() {
             let k = node.axis();
             let below = node.first_child();
-            let (near, far) = if sign[k] > 0 { (below, below + 1) } else { (below + 1, below) };
+            let (near, far) = if positive & (1 << k) != 0 { (below, below + 1) } else { (below + 1, below) };
             let ts = (Vec4::splat(node.split()) - pick(o, k)) * pick(inv, k);
             let need_far = mask & ts.cmplt(t1);
             let need_near = mask & !(ts.cmplt(t1) & ts.cmple(t0));

@@ -17,6 +17,8 @@ pub trait Visitor {
 /// A hit query, one triangle at a time (the packet traversal fetches each triangle once and
 /// offers it to every active ray of the packet).
 pub trait Query {
+    /// Nothing found yet on `ray`.
+    fn new(ray: &Ray) -> Self;
     /// Tests triangle `prim`.
     fn test<S: Stats>(&mut self, prim: u32, tri: &Triangle, r: &ShearedRay, t_min: f32, stats: &mut S);
     /// Whether a further triangle can still change the answer.
@@ -48,13 +50,11 @@ pub struct Closest {
     pub t_max: f32,
 }
 
-impl Closest {
-    pub fn new(ray: &Ray) -> Self {
+impl Query for Closest {
+    #[inline(always)]
+    fn new(ray: &Ray) -> Self {
         Closest { hit: Hit::NONE, t_max: ray.t_max }
     }
-}
-
-impl Query for Closest {
     #[inline(always)]
     fn test<S: Stats>(&mut self, p: u32, tri: &Triangle, r: &ShearedRay, t_min: f32, stats: &mut S) {
         stats.tri();
@@ -81,13 +81,11 @@ pub struct AnyHit {
     pub t_max: f32,
 }
 
-impl AnyHit {
-    pub fn new(ray: &Ray) -> Self {
+impl Query for AnyHit {
+    #[inline(always)]
+    fn new(ray: &Ray) -> Self {
         AnyHit { found: false, t_max: ray.t_max }
     }
-}
-
-impl Query for AnyHit {
     #[inline(always)]
     fn test<S: Stats>(&mut self, _p: u32, tri: &Triangle, r: &ShearedRay, t_min: f32, stats: &mut S) {
         stats.tri();

@@ -1,7 +1,7 @@
 //! The single-ray traversal family, one generic function: the stack kind (`NoStack`,
 //! `ShortStack<N>`, `FullStack`) and `PUSHDOWN` select kd-restart, push-down, short-stack or the
 //! classic full stack (see the module table in `kdtree`).
-use super::query::{AnyHit, Closest, Visitor};
+use super::query::{AnyHit, Closest, Query, Visitor};
 use super::stack::{Entry, FullStack, NoStack, ShortStack, Stack};
 use super::{KdTree, Stats, MAX_DEPTH};
 use crate::aabb::{intersect_box, inv_dir};
