@@ -155,3 +155,194 @@ fn no_gpu_adapter() {
     assert!(stdout.contains("device: CPU"), "{stdout}");
     assert!(out.exists());
 }
+
+/// A scene file `name` with a camera and a square (in an OBJ file of its own, so that tests
+/// running in parallel never read a file another one is writing) but no light, plus `extra`.
+fn plain_scene(name: &str, extra: &str) -> PathBuf {
+    let obj = format!("{name}.obj");
+    tmp(&obj, "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n");
+    tmp(name, &format!("[camera]\neye = [0.5, 0.5, 3]\nlook_at = [0.5, 0.5, 0]\n[[mesh]]\nfile = \"{obj}\"\n{extra}"))
+}
+
+fn scene_err(name: &str, extra: &str) -> String {
+    let p = plain_scene(name, extra);
+    match scene::load(p.to_str().unwrap()) {
+        Ok(_) => panic!("{name} should not load"),
+        Err(e) => format!("{e:#}"),
+    }
+}
+
+#[test]
+fn non_finite_or_negative_quad_light_emission_names_the_light() {
+    let quad = |e: &str| format!("[[light]]\npoint = [0, 0, 2]\n[[light]]\ncorner = [0, 0, 1]\nedge1 = [1, 0, 0]\nedge2 = [0, 1, 0]\nemission = {e}\n");
+    let e = scene_err("quad-nan.toml", &quad("[nan, 1, 1]"));
+    assert!(e.contains("quad-nan.toml: light 2 emission is not finite: [NaN, 1.0, 1.0]"), "{e}");
+    let e = scene_err("quad-inf.toml", &quad("[1, inf, 1]"));
+    assert!(e.contains("quad-inf.toml: light 2 emission is not finite"), "{e}");
+    let e = scene_err("quad-neg.toml", &quad("[1, -1, 1]"));
+    assert!(e.contains("quad-neg.toml: light 2 emission is negative: [1.0, -1.0, 1.0]"), "{e}");
+    let e = scene_err("quad-flat.toml", "[[light]]\ncorner = [0, 0, 1]\nedge1 = [1, 0, 0]\nedge2 = [2, 0, 0]\n");
+    assert!(e.contains("quad-flat.toml: light 1: edge1 [1, 0, 0] and edge2 [2, 0, 0] span no area"), "{e}");
+    let e = scene_err("quad-edge.toml", "[[light]]\ncorner = [0, 0, 1]\nedge1 = [1, nan, 0]\nedge2 = [0, 1, 0]\n");
+    assert!(e.contains("quad-edge.toml: light 1 edge1 is not finite"), "{e}");
+    let e = scene_err("mixed.toml", "[[light]]\npoint = [0, 0, 2]\nemission = [5, 5, 5]\n");
+    assert!(e.contains("mixed.toml: light 1: a point light takes 'intensity', not 'edge1', 'edge2' or 'emission'"), "{e}");
+    assert_eq!(e.lines().count(), 1, "{e}");
+}
+
+#[test]
+fn non_finite_point_lights_materials_and_cameras_are_rejected() {
+    let e = scene_err("point-inf.toml", "[[light]]\npoint = [0, 0, 2]\nintensity = [inf, 1, 1]\n");
+    assert!(e.contains("point-inf.toml: light 1 intensity is not finite: [inf, 1.0, 1.0]"), "{e}");
+    let e = scene_err("point-neg.toml", "[[light]]\npoint = [0, 0, 2]\nintensity = [1, 1, -0.5]\n");
+    assert!(e.contains("point-neg.toml: light 1 intensity is negative"), "{e}");
+    let e = scene_err("point-pos.toml", "[[light]]\npoint = [0, nan, 2]\n");
+    assert!(e.contains("point-pos.toml: light 1 point is not finite"), "{e}");
+    let e = scene_err("mat-nan.toml", "[materials.white]\ndiffuse = [0.5, 0.5, 0.5]\nemission = [0, nan, 0]\n");
+    assert!(e.contains("mat-nan.toml: material 'white' emission is not finite"), "{e}");
+    let e = scene_err("mat-neg.toml", "[materials.white]\ndiffuse = [0.5, -0.5, 0.5]\n");
+    assert!(e.contains("mat-neg.toml: material 'white' diffuse is negative"), "{e}");
+    tmp("camera-tests.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n");
+    let cam = |c: &str| format!("[camera]\n{c}\n[[mesh]]\nfile = \"camera-tests.obj\"\n");
+    let e = load_err("fov.toml", &cam("eye = [0, 0, 1]\nlook_at = [0, 0, 0]\nfov_y = nan"));
+    assert!(e.contains("fov.toml: camera fov_y must be between 0 and 180 degrees"), "{e}");
+    let e = load_err("fov0.toml", &cam("eye = [0, 0, 1]\nlook_at = [0, 0, 0]\nfov_y = 0"));
+    assert!(e.contains("fov0.toml: camera fov_y must be between 0 and 180 degrees (exclusive), got 0"), "{e}");
+    let e = load_err("sameeye.toml", &cam("eye = [0, 0, 1]\nlook_at = [0, 0, 1]"));
+    assert!(e.contains("sameeye.toml: camera eye and look_at must be distinct points"), "{e}");
+    let e = load_err("camup.toml", &cam("eye = [0, 0, 1]\nlook_at = [0, 0, 0]\nup = [0, 0, 2]"));
+    assert!(e.contains("camup.toml: camera up [0, 0, 2] is zero or parallel to the view direction"), "{e}");
+}
+
+#[test]
+fn non_finite_or_negative_mtl_colours_name_file_line_and_material() {
+    let mtl_err = |stem: &str, mtl: &str| {
+        tmp(&format!("{stem}.mtl"), mtl);
+        load_err(&format!("{stem}.obj"), &format!("mtllib {stem}.mtl\n{TRI}usemtl m\nf 1 2 3\n"))
+    };
+    let e = mtl_err("kd-nan", "newmtl m\nKd nan 0.5 0.5\n");
+    assert!(e.contains("kd-nan.mtl:2: material 'm' Kd has a non-finite value 'nan'"), "{e}");
+    let e = mtl_err("kd-huge", "newmtl m\nKd 0.5 1e39 0.5\n");
+    assert!(e.contains("kd-huge.mtl:2: material 'm' Kd has a non-finite value '1e39'"), "{e}");
+    let e = mtl_err("ke-inf", "newmtl m\nKd 0.5 0.5 0.5\nKe 1 1 inf\n");
+    assert!(e.contains("ke-inf.mtl:3: material 'm' Ke has a non-finite value 'inf'"), "{e}");
+    let e = mtl_err("ke-neg", "newmtl m\nKe -2 1 1\n");
+    assert!(e.contains("ke-neg.mtl:2: material 'm' Ke has a negative value '-2'"), "{e}");
+    // tobj panics on fewer than three numbers.
+    let e = mtl_err("kd-short", "newmtl m\nKd 0.5\n");
+    assert!(e.contains("kd-short.mtl:2: material 'm' Kd needs 3 numbers (r g b): 'Kd 0.5'"), "{e}");
+    assert_eq!(e.lines().count(), 1, "{e}");
+}
+
+#[test]
+fn light_powers_that_overflow_are_rejected() {
+    let huge = "[[light]]\ncorner = [-1.5e38, 0, 0]\nedge1 = [3e38, 0, 0]\nedge2 = [0, 0, 3e38]\nemission = [1, 1, 1]\n";
+    let e = scene_err("light-huge.toml", huge);
+    assert!(e.contains("(material 'light1') has a non-finite power: area inf"), "{e}");
+    let bright = "[[light]]\ncorner = [0, 0, 1]\nedge1 = [10, 0, 0]\nedge2 = [0, 10, 0]\nemission = [1e38, 1, 1]\n";
+    let e = scene_err("light-bright.toml", bright);
+    assert!(e.contains("(material 'light1') has a non-finite power: area 5e1 × emission [1e38, 1.0, 1.0] overflows f32"), "{e}");
+    assert_eq!(e.lines().count(), 1, "{e}");
+}
+
+#[test]
+fn zero_power_lights_are_skipped_and_the_cdf_is_never_nan() {
+    use glam::Vec3;
+    use kdray::scene::{CameraSpec, PointLight, Scene};
+    use kdray_shared::{Light, Material};
+    let cdf_ok = |ls: &[Light]| {
+        ls.iter().all(|l| l.cdf.is_finite() && l.cdf >= 0.0 && l.cdf <= 1.0)
+            && ls.windows(2).all(|w| w[0].cdf <= w[1].cdf)
+            && ls.last().is_none_or(|l| l.cdf == 1.0)
+    };
+    // Black lights in a scene file load, and are not lights.
+    let black = "[[light]]\npoint = [0, 0, 2]\nintensity = [0, 0, 0]\n[[light]]\ncorner = [0, 0, 1]\nedge1 = [1, 0, 0]\nedge2 = [0, 1, 0]\nemission = [0, 0, 0]\n";
+    let p = plain_scene("black.toml", black);
+    let s = scene::load(p.to_str().unwrap()).unwrap();
+    assert!(s.lights().is_empty(), "{:?}", s.lights());
+    // With one bright light beside them, only it is sampled.
+    let p = plain_scene("one-bright.toml", &format!("{black}[[light]]\npoint = [0, 1, 2]\nintensity = [0, 0, 3]\n"));
+    let s = scene::load(p.to_str().unwrap()).unwrap();
+    let ls = s.lights();
+    assert_eq!(ls.len(), 1, "{ls:?}");
+    assert_eq!((ls[0].emission, ls[0].cdf), ([0.0, 0.0, 3.0], 1.0), "blue only has a positive luminance");
+
+    // Scenes built in code: NaN / infinite / negative emission never gives a NaN cdf (uniform
+    // selection instead), and `validate` names the problem.
+    let tri = [Vec3::ZERO, Vec3::X, Vec3::Y];
+    let scene_with = |emission: [f32; 3], intensity: Vec3| {
+        let mut s = Scene::new("coded", CameraSpec::framing(Vec3::ZERO, Vec3::ONE));
+        let m = s.add_material("glow", Material { diffuse: [0.5; 3], emission, ..Default::default() });
+        let w = s.add_material("white", Material { diffuse: [0.5; 3], ..Default::default() });
+        s.add_triangle(tri, m, &|| "tri".into()).unwrap();
+        s.add_triangle(tri.map(|v| v + Vec3::Z), w, &|| "tri".into()).unwrap();
+        s.point_lights.push(PointLight { position: Vec3::new(0.0, 0.0, 2.0), intensity });
+        s
+    };
+    for (emission, intensity, expect) in [
+        ([f32::NAN, 1.0, 1.0], Vec3::ONE, "coded: material 'glow' emission is not finite"),
+        ([f32::INFINITY, 1.0, 1.0], Vec3::ONE, "coded: material 'glow' emission is not finite"),
+        ([1.0, 1.0, 1.0], Vec3::new(-5.0, 0.0, 0.0), "coded: point light 1 intensity is negative"),
+        ([f32::MAX; 3], Vec3::splat(f32::MAX), "coded: the lights' total power"),
+    ] {
+        let s = scene_with(emission, intensity);
+        let ls = s.lights();
+        assert_eq!(ls.len(), 2, "{ls:?}");
+        assert!(cdf_ok(&ls), "{emission:?} {intensity}: {ls:?}");
+        let e = format!("{:#}", s.validate().unwrap_err());
+        assert!(e.starts_with(expect), "{e}");
+    }
+    // The largest finite inputs: weights are computed in f64, so the cdf stays finite.
+    let mut s = scene_with([f32::MAX; 3], Vec3::splat(f32::MAX));
+    let big = [Vec3::new(-f32::MAX, -f32::MAX, 0.0), Vec3::new(f32::MAX, -f32::MAX, 0.0), Vec3::new(0.0, f32::MAX, 0.0)];
+    s.add_triangle(big, 0, &|| "big".into()).unwrap();
+    let ls = s.lights();
+    assert_eq!(ls.len(), 3);
+    assert!(cdf_ok(&ls), "{ls:?}");
+    assert!(ls[0].cdf < ls[1].cdf, "proportional, not uniform: {ls:?}");
+    assert!(s.validate().is_err());
+}
+
+fn render_warnings(scene: &std::path::Path) -> (i32, Vec<String>, String) {
+    let out = scene.with_extension("png");
+    let (code, _, err) =
+        kdray(&["render", "--device", "cpu", "--size", "8", "--scene", scene.to_str().unwrap(), "--out", out.to_str().unwrap()], &[]);
+    let warnings = err.lines().filter(|l| l.starts_with("warning:")).map(String::from).collect();
+    (code, warnings, err)
+}
+
+#[test]
+fn glass_is_kept_and_warned_about_once() {
+    tmp("glass.mtl", "newmtl clear\nKd 0.9 0.9 0.9\nillum 7\nnewmtl frosted\nKd 0.9 0.9 0.9\nillum 4\nnewmtl unused\nillum 6\n");
+    let obj = tmp(
+        "glass.obj",
+        "mtllib glass.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nusemtl clear\nf 1 2 3\nusemtl frosted\nf 1 3 4\n",
+    );
+    let s = scene::load(obj.to_str().unwrap()).unwrap();
+    let m = s.materials[s.triangles[0].material as usize];
+    assert_eq!(m.flags, kdray_shared::MAT_GLASS, "the flag is kept");
+    let (code, warnings, err) = render_warnings(&obj);
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(warnings.len(), 1, "{err}");
+    let w = &warnings[0];
+    assert!(w.contains("glass.obj: materials 'clear', 'frosted' are glass (dielectric)"), "{w}");
+    assert!(w.contains("dielectrics are not rendered yet and they are shaded as diffuse"), "{w}");
+    assert!(!w.contains("unused"), "only materials that faces use: {w}");
+
+    // A scene file: its own glass material and the OBJ's, still one line.
+    let toml = tmp(
+        "glass.toml",
+        "[materials.pane]\ndiffuse = [0.8, 0.8, 0.8]\nglass = true\n[[mesh]]\nfile = \"glass.obj\"\n[[mesh]]\nfile = \"glass.obj\"\nmaterial = \"pane\"\ntranslate = [0, 0, -1]\n[[light]]\npoint = [0, 0, 3]\n",
+    );
+    let (code, warnings, err) = render_warnings(&toml);
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(warnings.len(), 1, "{err}");
+    assert!(warnings[0].starts_with("warning: ") && warnings[0].contains("glass.toml: materials"), "{}", warnings[0]);
+    for name in ["'pane'", "'clear'", "'frosted'"] {
+        assert!(warnings[0].contains(name), "{}", warnings[0]);
+    }
+    // No glass, no warning.
+    let (code, warnings, err) = render_warnings(&tmp("noglass.obj", &format!("{TRI}f 1 2 3\n")));
+    assert_eq!(code, 0, "{err}");
+    assert!(warnings.is_empty(), "{err}");
+}

@@ -3,7 +3,9 @@
 mod common;
 
 use kdray::image_out::compare;
-use kdray::{scene, Accel, CpuTracer, GpuTracer, Tracer};
+use kdray::integrator::direct;
+use kdray::runtime::cpu::NATIVE;
+use kdray::{scene, Accel, Tracer};
 use kdray_shared::{camera, rng::Rng, shade, Hit, Ray};
 
 /// Fraction of differing ids and the largest |Δt|/t where the ids agree.
@@ -26,9 +28,9 @@ fn cornell_256_closest_and_any_hit_cpu_vs_gpu() {
     let scene = scene::load("cornell").unwrap();
     let cam = scene.camera.to_pod(256, 256);
     let rays: Vec<Ray> = (0..256 * 256).map(|i| camera::primary_ray(&cam, i)).collect();
-    let cpu = CpuTracer::new(&scene, None);
-    let gpu = GpuTracer::new(g, &scene, None).unwrap();
-    let (ch, gh) = (cpu.closest_hits(Accel::Brute, &rays).unwrap(), gpu.closest_hits(Accel::Brute, &rays).unwrap());
+    let cpu = Tracer::new(&NATIVE, &scene, None).unwrap();
+    let gpu = Tracer::new(g, &scene, None).unwrap();
+    let (ch, gh) = (cpu.closest_hits(Accel::BRUTE, &rays).unwrap(), gpu.closest_hits(Accel::BRUTE, &rays).unwrap());
     let (frac, max_rel) = diff(&ch, &gh);
     println!("Cornell 256² primary rays on {}: {:.5} % ids differ, max |Δt|/t = {:.2e}", gpu.device_name(), 100.0 * frac, max_rel);
     assert!(frac <= 1e-5, "{:.5} % of hit ids differ", 100.0 * frac);
@@ -45,7 +47,7 @@ fn cornell_256_closest_and_any_hit_cpu_vs_gpu() {
             shade::light_sample(5, i as u32, r, h, &scene.triangles, &scene.materials, &lights, lights.len() as u32).0
         })
         .collect();
-    let (ca, ga) = (cpu.any_hits(Accel::Brute, &shadow).unwrap(), gpu.any_hits(Accel::Brute, &shadow).unwrap());
+    let (ca, ga) = (cpu.any_hits(Accel::BRUTE, &shadow).unwrap(), gpu.any_hits(Accel::BRUTE, &shadow).unwrap());
     let differ = ca.iter().zip(&ga).filter(|(a, b)| a != b).count();
     let occluded = ca.iter().filter(|o| **o).count();
     println!("shadow rays: {occluded} occluded, {differ} differ");
@@ -67,8 +69,8 @@ fn random_rays_in_and_around_the_cornell_box() {
             Ray::new(o, *d, 0.0, f32::INFINITY)
         })
         .collect();
-    let ch = CpuTracer::new(&scene, None).closest_hits(Accel::Brute, &rays).unwrap();
-    let gh = GpuTracer::new(g, &scene, None).unwrap().closest_hits(Accel::Brute, &rays).unwrap();
+    let ch = Tracer::new(&NATIVE, &scene, None).unwrap().closest_hits(Accel::BRUTE, &rays).unwrap();
+    let gh = Tracer::new(g, &scene, None).unwrap().closest_hits(Accel::BRUTE, &rays).unwrap();
     let (frac, max_rel) = diff(&ch, &gh);
     // Rays starting next to a surface have tiny t, whose rounding error is relative to the
     // coordinates (t comes from a sum of terms of the size of the vertices): measure |Δt|
@@ -91,7 +93,10 @@ fn random_rays_in_and_around_the_cornell_box() {
 fn rng_streams_are_identical() {
     let Some(g) = common::gpu() else { return };
     let n = 100_000;
-    let gpu = kdray::gpu::tracer::rng_streams(g, 1234, n).unwrap();
+    let rt: &dyn kdray::Runtime = g;
+    let out = rt.alloc::<[u32; 4]>("rng", n).unwrap();
+    rt.run(&[&kdray::kernels::RngFill::new(n as u32, 0, 1234, &out)]).unwrap();
+    let gpu = rt.read(&out, n).unwrap();
     for (i, got) in gpu.iter().enumerate() {
         let mut r = Rng::new(1234, i as u32);
         let want = [r.next_u32(), r.next_u32(), r.next_u32(), r.next_u32()];
@@ -108,9 +113,9 @@ fn cornell_render_matches_pixel_for_pixel() {
     let scene = scene::load("cornell").unwrap();
     let cam = scene.camera.to_pod(256, 256);
     let pb = indicatif::ProgressBar::hidden();
-    let c = CpuTracer::new(&scene, None).render(Accel::Brute, &cam, 7, 4, &pb).unwrap();
-    let gt = GpuTracer::new(g, &scene, None).unwrap();
-    let r = gt.render(Accel::Brute, &cam, 7, 4, &pb).unwrap();
+    let c = direct::render(&Tracer::new(&NATIVE, &scene, None).unwrap(), Accel::BRUTE, &cam, 7, 4, &pb).unwrap();
+    let gt = Tracer::new(g, &scene, None).unwrap();
+    let r = direct::render(&gt, Accel::BRUTE, &cam, 7, 4, &pb).unwrap();
     let cmp = compare(&c, &r, 1.0);
     println!("render GPU vs CPU: {cmp}");
     assert!(cmp.id_mismatches as f64 <= 1e-5 * cmp.pixels as f64);
@@ -133,9 +138,9 @@ fn gpu_camera_rays_match_cpu() {
     // Rendering uses GPU-generated camera rays; their hits equal CPU camera rays' hits.
     let scene = scene::load("cornell").unwrap();
     let cam = scene.camera.to_pod(97, 61);
-    let r = GpuTracer::new(g, &scene, None).unwrap().render(Accel::Brute, &cam, 1, 4, &indicatif::ProgressBar::hidden()).unwrap();
+    let r = direct::render(&Tracer::new(g, &scene, None).unwrap(), Accel::BRUTE, &cam, 1, 4, &indicatif::ProgressBar::hidden()).unwrap();
     let rays: Vec<Ray> = (0..97 * 61).map(|i| camera::primary_ray(&cam, i)).collect();
-    let ch = CpuTracer::new(&scene, None).closest_hits(Accel::Brute, &rays).unwrap();
+    let ch = Tracer::new(&NATIVE, &scene, None).unwrap().closest_hits(Accel::BRUTE, &rays).unwrap();
     let (frac, max_rel) = diff(&ch, &r.hits);
     assert!(frac <= 1e-3 && max_rel <= 1e-5, "{frac} {max_rel}");
 }
@@ -149,21 +154,21 @@ fn mirror_reflections_match_and_reflect() {
     assert!(scene.has_mirror());
     let cam = scene.camera.to_pod(128, 128);
     let pb = indicatif::ProgressBar::hidden();
-    let gt = GpuTracer::new(g, &scene, None).unwrap();
-    let c = CpuTracer::new(&scene, None).render(Accel::Brute, &cam, 3, 4, &pb).unwrap();
-    let r = gt.render(Accel::Brute, &cam, 3, 4, &pb).unwrap();
+    let gt = Tracer::new(g, &scene, None).unwrap();
+    let c = direct::render(&Tracer::new(&NATIVE, &scene, None).unwrap(), Accel::BRUTE, &cam, 3, 4, &pb).unwrap();
+    let r = direct::render(&gt, Accel::BRUTE, &cam, 3, 4, &pb).unwrap();
     let cmp = compare(&c, &r, 1.0);
     println!("mirror render GPU vs CPU: {cmp}");
     assert!(cmp.id_mismatches == 0 && cmp.max_colour_diff <= 1, "{cmp}");
     assert!(cmp.colour_mismatches as f64 <= 1e-3 * cmp.pixels as f64, "{cmp}");
     // Without bounces the mirrors are shaded as diffuse grey; with them they reflect.
-    let flat = CpuTracer::new(&scene, None).render(Accel::Brute, &cam, 3, 0, &pb).unwrap();
+    let flat = direct::render(&Tracer::new(&NATIVE, &scene, None).unwrap(), Accel::BRUTE, &cam, 3, 0, &pb).unwrap();
     let changed = c.radiance.iter().zip(&flat.radiance).filter(|(a, b)| a != b).count();
     assert!(changed > 2000, "only {changed} pixels changed with reflections");
     // A scene without mirrors traces no reflection: bounces change nothing.
     let plain = scene::load("cornell").unwrap();
-    let a = CpuTracer::new(&plain, None).render(Accel::Brute, &cam, 3, 0, &pb).unwrap();
-    let b = CpuTracer::new(&plain, None).render(Accel::Brute, &cam, 3, 4, &pb).unwrap();
+    let a = direct::render(&Tracer::new(&NATIVE, &plain, None).unwrap(), Accel::BRUTE, &cam, 3, 0, &pb).unwrap();
+    let b = direct::render(&Tracer::new(&NATIVE, &plain, None).unwrap(), Accel::BRUTE, &cam, 3, 4, &pb).unwrap();
     assert_eq!(a.radiance, b.radiance);
 }
 
@@ -178,12 +183,12 @@ fn packets_and_decomposed_pipeline_render_the_same_image() {
     let cam = scene.camera.to_pod(96, 96);
     let pb = indicatif::ProgressBar::hidden();
     for_each_runtime(&scene, &tree, |t| {
-        let base = t.render(Accel::Kd(Algorithm::Stack), &cam, 5, 4, &pb).unwrap();
+        let base = direct::render(&t, Accel::kd(Algorithm::Stack), &cam, 5, 4, &pb).unwrap();
         assert!(base.hits.iter().filter(|h| h.is_hit()).count() > 8000);
-        let mut variants = vec![Accel::Decomposed { capacity: 1 }, Accel::Decomposed { capacity: 16 }];
-        variants.extend(kdray::gpu::kernels::GPU_PACKETS.map(Accel::Packet));
+        let mut variants = vec![Accel::decomposed(1), Accel::decomposed(16)];
+        variants.extend(Accel::gpu_packets());
         for accel in variants {
-            let img = t.render(accel, &cam, 5, 4, &pb).unwrap();
+            let img = direct::render(&t, accel, &cam, 5, 4, &pb).unwrap();
             let cmp = compare(&base, &img, 1.0);
             println!("{} {}: {cmp}", t.device_name(), accel.name());
             assert_eq!(img.hits, base.hits, "{} {}: primary hits differ", t.device_name(), accel.name());
@@ -219,9 +224,9 @@ fn tiled_ray_order_renders_the_same_image() {
     let tiles = kdray_shared::Camera { order: kdray_shared::ORDER_TILES, ..scan };
     let pb = indicatif::ProgressBar::hidden();
     for_each_runtime(&scene, &tree, |t| {
-        for accel in [Accel::Kd(Algorithm::ShortStack(3)), Accel::Packet(Algorithm::ShortStack(3))] {
-            let a = t.render(accel, &scan, 9, 4, &pb).unwrap();
-            let b = t.render(accel, &tiles, 9, 4, &pb).unwrap();
+        for accel in [Accel::kd(Algorithm::ShortStack(3)), Accel::packet(Algorithm::ShortStack(3))] {
+            let a = direct::render(&t, accel, &scan, 9, 4, &pb).unwrap();
+            let b = direct::render(&t, accel, &tiles, 9, 4, &pb).unwrap();
             assert_eq!(a.hits, b.hits, "{} {}", t.device_name(), accel.name());
             assert_eq!(a.radiance, b.radiance, "{} {}", t.device_name(), accel.name());
         }
@@ -229,9 +234,104 @@ fn tiled_ray_order_renders_the_same_image() {
 }
 
 /// Runs `f` on the native runtime and, where there is a GPU adapter, on the GPU runtime.
-fn for_each_runtime(scene: &kdray::Scene, tree: &kdray::kdtree::KdTreeData, mut f: impl FnMut(&dyn Tracer)) {
-    f(&CpuTracer::new(scene, Some(tree)));
+fn for_each_runtime(scene: &kdray::Scene, tree: &kdray::kdtree::KdTreeData, mut f: impl FnMut(&Tracer)) {
+    f(&Tracer::new(&NATIVE, scene, Some(tree)).unwrap());
     if let Some(g) = common::gpu() {
-        f(&GpuTracer::new(g, scene, Some(tree)).unwrap());
+        f(&Tracer::new(g, scene, Some(tree)).unwrap());
+    }
+}
+
+/// Buffer clears and indirect dispatch, on each runtime: a dispatch whose workgroup count is
+/// read from a buffer runs exactly that many workgroups, the same items on both.
+#[test]
+fn clear_and_indirect_dispatch_on_both_runtimes() {
+    use kdray::kernels::RngFill;
+    use kdray::Runtime;
+    let n = 1000usize;
+    let mut results = Vec::new();
+    let mut runtimes: Vec<&dyn Runtime> = vec![&NATIVE];
+    if let Some(g) = common::gpu() {
+        runtimes.push(g);
+    }
+    for rt in runtimes {
+        let out = rt.alloc::<[u32; 4]>("rng", n).unwrap();
+        rt.run(&[&RngFill::new(n as u32, 0, 77, &out)]).unwrap();
+        assert!(rt.read(&out, n).unwrap().iter().all(|v| *v != [0; 4]), "{}: filled", rt.name());
+        // Clear, then 2 workgroups of 64 threads from an indirect-argument buffer.
+        let args = rt.upload("indirect", &[[9u32, 9, 9], [2, 1, 1]]).unwrap();
+        let mut c = rt.begin();
+        rt.clear(&mut c, out.raw()).unwrap();
+        rt.dispatch_indirect(&mut c, &RngFill::new(n as u32, 0, 77, &out), &args, 1).unwrap();
+        let p = rt.read_back_of(&mut c, &out, n).unwrap();
+        rt.submit(c).unwrap();
+        let got: Vec<[u32; 4]> = kdray::runtime::cast(rt.wait(p).unwrap());
+        let written = got.iter().filter(|v| **v != [0; 4]).count();
+        assert_eq!(written, 128, "{}: an indirect dispatch of 2 workgroups of 64", rt.name());
+        assert!(got[128..].iter().all(|v| *v == [0; 4]), "{}: the clear left the rest zero", rt.name());
+        results.push(got);
+    }
+    assert!(results.windows(2).all(|w| w[0] == w[1]), "the runtimes disagree");
+}
+
+/// A kernel declared on the host differently from its entry point in the SPIR-V module is an
+/// error naming the kernel and the binding, on both runtimes (the native one checks the module
+/// too), never a wrong binding.
+#[test]
+fn a_host_declaration_that_does_not_match_the_shader_is_an_error() {
+    use kdray::runtime::{write, Bind, Buffer, Kernel};
+    use kdray::Runtime;
+    use std::borrow::Cow;
+    /// `rng_fill` bound with 8-byte elements instead of [u32; 4].
+    struct WrongElement<'a> {
+        params: kdray_shared::ItemParams,
+        out: &'a Buffer<[u32; 2]>,
+    }
+    impl Kernel for WrongElement<'_> {
+        fn entry(&self) -> Cow<'static, str> {
+            "rng_fill".into()
+        }
+        fn params(&self) -> &[u8] {
+            bytemuck::bytes_of(&self.params)
+        }
+        fn bindings(&self) -> Vec<Bind<'_>> {
+            vec![write("out", self.out)]
+        }
+        fn threads(&self) -> u32 {
+            self.params.count
+        }
+        fn run(&self, _t: u32) {
+            unreachable!("never runs: the declaration is rejected")
+        }
+    }
+    /// `rng_fill` with its buffer under another name.
+    struct WrongName<'a>(WrongElement<'a>);
+    impl Kernel for WrongName<'_> {
+        fn entry(&self) -> Cow<'static, str> {
+            self.0.entry()
+        }
+        fn params(&self) -> &[u8] {
+            self.0.params()
+        }
+        fn bindings(&self) -> Vec<Bind<'_>> {
+            vec![write("output", self.0.out)]
+        }
+        fn threads(&self) -> u32 {
+            self.0.threads()
+        }
+        fn run(&self, _t: u32) {
+            unreachable!()
+        }
+    }
+    let mut runtimes: Vec<&dyn Runtime> = vec![&NATIVE];
+    if let Some(g) = common::gpu() {
+        runtimes.push(g);
+    }
+    for rt in runtimes {
+        let out = rt.alloc::<[u32; 2]>("rng", 64).unwrap();
+        let k = WrongElement { params: kdray_shared::ItemParams { count: 64, ..Default::default() }, out: &out };
+        let e = format!("{:#}", rt.run(&[&k]).unwrap_err());
+        assert!(e.contains("kernel rng_fill") && e.contains("'out'") && e.contains("16 bytes"), "{}: {e}", rt.name());
+        let e = format!("{:#}", rt.run(&[&WrongName(k)]).unwrap_err());
+        assert!(e.contains("kernel rng_fill") && e.contains("'out'"), "{}: {e}", rt.name());
     }
 }

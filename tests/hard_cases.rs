@@ -3,7 +3,8 @@
 mod common;
 
 use glam::Vec3;
-use kdray::{Accel, CpuTracer, GpuTracer, Tracer};
+use kdray::runtime::cpu::NATIVE;
+use kdray::{Accel, Tracer};
 use kdray_shared::aabb::{intersect_box, inv_dir, Aabb};
 use kdray_shared::triangle::{intersect_triangle, ShearedRay};
 use kdray_shared::{brute, Hit, Ray, Triangle};
@@ -26,16 +27,16 @@ fn both(tris: &[Triangle], rays: &[Ray]) -> Vec<Hit> {
         material_names: vec!["m".into()],
         ..kdray::Scene::new("hard", kdray::scene::CameraSpec::framing(Vec3::ZERO, Vec3::ONE))
     };
-    let cpu = CpuTracer::new(&scene, None);
-    let ch = cpu.closest_hits(Accel::Brute, rays).unwrap();
-    let ca = cpu.any_hits(Accel::Brute, rays).unwrap();
+    let cpu = Tracer::new(&NATIVE, &scene, None).unwrap();
+    let ch = cpu.closest_hits(Accel::BRUTE, rays).unwrap();
+    let ca = cpu.any_hits(Accel::BRUTE, rays).unwrap();
     for (r, h) in rays.iter().zip(&ch) {
         assert_eq!(*h, brute::closest_hit(r, tris));
     }
     if let Some(g) = common::gpu() {
-        let gt = GpuTracer::new(g, &scene, None).unwrap();
-        let gh = gt.closest_hits(Accel::Brute, rays).unwrap();
-        let ga = gt.any_hits(Accel::Brute, rays).unwrap();
+        let gt = Tracer::new(g, &scene, None).unwrap();
+        let gh = gt.closest_hits(Accel::BRUTE, rays).unwrap();
+        let ga = gt.any_hits(Accel::BRUTE, rays).unwrap();
         for (i, (c, g)) in ch.iter().zip(&gh).enumerate() {
             // A different triangle is only acceptable as a tie: two triangles meeting at the hit
             // point whose t differ in the last bits (the GPU's division may round differently).
@@ -225,7 +226,7 @@ fn closed_sphere_far_from_origin_has_no_leaks() {
         .into_iter()
         .map(|d| Ray::new(center.to_array(), d, 0.0, f32::INFINITY))
         .collect();
-    let cpu = CpuTracer::new(&scene, None).closest_hits(Accel::Brute, &rays).unwrap();
+    let cpu = Tracer::new(&NATIVE, &scene, None).unwrap().closest_hits(Accel::BRUTE, &rays).unwrap();
     let misses = cpu.iter().filter(|h| !h.is_hit()).count();
     assert_eq!(misses, 0, "{misses} of {n} rays leaked out of the closed sphere (CPU)");
     // Also aimed exactly at every vertex and edge midpoint.
@@ -241,7 +242,7 @@ fn closed_sphere_far_from_origin_has_no_leaks() {
     let hits = both(&scene.triangles, &aimed);
     assert!(hits.iter().all(|h| h.is_hit()), "a ray aimed at a vertex or an edge leaked");
     if let Some(g) = common::gpu() {
-        let gpu = GpuTracer::new(g, &scene, None).unwrap().closest_hits(Accel::Brute, &rays).unwrap();
+        let gpu = Tracer::new(g, &scene, None).unwrap().closest_hits(Accel::BRUTE, &rays).unwrap();
         let misses = gpu.iter().filter(|h| !h.is_hit()).count();
         assert_eq!(misses, 0, "{misses} of {n} rays leaked out of the closed sphere (GPU)");
         let differ = cpu.iter().zip(&gpu).filter(|(a, b)| a.prim != b.prim).count();

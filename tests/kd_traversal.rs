@@ -5,7 +5,8 @@ mod common;
 
 use glam::Vec3;
 use kdray::kdtree::{build, BuildOptions, KdTreeData};
-use kdray::{scene, Accel, CpuTracer, GpuTracer, Scene, Tracer};
+use kdray::runtime::cpu::NATIVE;
+use kdray::{scene, Accel, Scene, Tracer};
 use kdray_shared::kdtree::{Algorithm, MAX_SHORT_STACK};
 use kdray_shared::rng::Rng;
 use kdray_shared::{Hit, Ray};
@@ -26,16 +27,16 @@ fn agree(a: &Hit, b: &Hit) -> bool {
 fn cpu_grouped() -> Vec<Accel> {
     let mut v: Vec<Accel> = [Algorithm::Stack, Algorithm::Restart, Algorithm::PushDown, Algorithm::ShortStack(1), Algorithm::ShortStack(2), Algorithm::ShortStack(3), Algorithm::ShortStack(8)]
         .into_iter()
-        .map(Accel::Packet)
+        .map(Accel::packet)
         .collect();
-    v.extend([1, 3, 16].map(|capacity| Accel::Decomposed { capacity }));
+    v.extend([1, 3, 16].map(Accel::decomposed));
     v
 }
 
 /// The same on the GPU (every packet kernel; leaf lists that overflow often and rarely).
 fn gpu_grouped() -> Vec<Accel> {
-    let mut v: Vec<Accel> = kdray::gpu::kernels::GPU_PACKETS.into_iter().map(Accel::Packet).collect();
-    v.extend([2, 16].map(|capacity| Accel::Decomposed { capacity }));
+    let mut v: Vec<Accel> = Accel::gpu_packets();
+    v.extend([2, 16].map(Accel::decomposed));
     v
 }
 
@@ -50,7 +51,7 @@ fn octant_order(rays: &[Ray]) -> Vec<usize> {
 
 /// GPU kernels that get every random ray; the others get `GPU_SAMPLE` of them (lavapipe in CI
 /// runs on two CPU cores).
-const GPU_FULL: [Accel; 2] = [Accel::Kd(Algorithm::Stack), Accel::Kd(Algorithm::ShortStack(3))];
+const GPU_FULL: [Accel; 2] = [Accel::kd(Algorithm::Stack), Accel::kd(Algorithm::ShortStack(3))];
 const GPU_SAMPLE: usize = 1 << 16;
 
 /// Checks every traversal against the oracle; `rays[..hard]` are hand-made hard cases, the
@@ -63,11 +64,11 @@ fn check(name: &str, scene: &Scene, tree: &KdTreeData, rays: &[Ray], hard: usize
 
 /// `check`, natively only when `on_gpu` is false.
 fn check_on(name: &str, scene: &Scene, tree: &KdTreeData, rays: &[Ray], hard: usize, on_gpu: bool) -> Vec<Hit> {
-    let cpu = CpuTracer::new(scene, Some(tree));
-    let oracle = cpu.closest_hits(Accel::Brute, rays).unwrap();
-    let oracle_any = cpu.any_hits(Accel::Brute, rays).unwrap();
+    let cpu = Tracer::new(&NATIVE, scene, Some(tree)).unwrap();
+    let oracle = cpu.closest_hits(Accel::BRUTE, rays).unwrap();
+    let oracle_any = cpu.any_hits(Accel::BRUTE, rays).unwrap();
     for alg in cpu_algorithms() {
-        let hits = cpu.closest_hits(Accel::Kd(alg), rays).unwrap();
+        let hits = cpu.closest_hits(Accel::kd(alg), rays).unwrap();
         let bad: Vec<usize> = (0..rays.len()).filter(|&i| hits[i] != oracle[i]).collect();
         if let Some(&i) = bad.first() {
             panic!(
@@ -75,14 +76,14 @@ fn check_on(name: &str, scene: &Scene, tree: &KdTreeData, rays: &[Ray], hard: us
                 bad.len(), rays.len(), rays[i], hits[i], oracle[i]
             );
         }
-        let any = cpu.any_hits(Accel::Kd(alg), rays).unwrap();
+        let any = cpu.any_hits(Accel::kd(alg), rays).unwrap();
         let bad = (0..rays.len()).filter(|&i| any[i] != oracle_any[i]).count();
         assert_eq!(bad, 0, "{name}: CPU {alg:?} any-hit differs on {bad} rays");
     }
     // Packets and the decomposed pipeline on the rays grouped by octant.
     let order = octant_order(rays);
     let grouped: Vec<Ray> = order.iter().map(|&i| rays[i]).collect();
-    let coherent = cpu.coherent_packets(&grouped);
+    let coherent = kdray::analysis::coherent_packets(&grouped);
     println!("{name}: {coherent} of {} packets coherent", grouped.len().div_ceil(4));
     for accel in cpu_grouped() {
         let hits = cpu.closest_hits(accel, &grouped).unwrap();
@@ -98,7 +99,7 @@ fn check_on(name: &str, scene: &Scene, tree: &KdTreeData, rays: &[Ray], hard: us
         assert_eq!(bad, 0, "{name}: CPU {} any-hit differs on {bad} rays", accel.name());
     }
     if let Some(g) = common::gpu().filter(|_| on_gpu) {
-        let gpu = GpuTracer::new(g, scene, Some(tree)).unwrap();
+        let gpu = Tracer::new(g, scene, Some(tree)).unwrap();
         for accel in Accel::all().into_iter().skip(1) {
             let n = if GPU_FULL.contains(&accel) { rays.len() } else { (hard + GPU_SAMPLE).min(rays.len()) };
             let hits = gpu.closest_hits(accel, &rays[..n]).unwrap();
@@ -121,8 +122,8 @@ fn check_on(name: &str, scene: &Scene, tree: &KdTreeData, rays: &[Ray], hard: us
         let n = (hard + GPU_SAMPLE).min(rays.len());
         let sample: Vec<usize> = octant_order(&rays[..n]);
         let grouped: Vec<Ray> = sample.iter().map(|&i| rays[i]).collect();
-        let single = gpu.closest_hits(Accel::Kd(Algorithm::Stack), &grouped).unwrap();
-        let single_any = gpu.any_hits(Accel::Kd(Algorithm::Stack), &grouped).unwrap();
+        let single = gpu.closest_hits(Accel::kd(Algorithm::Stack), &grouped).unwrap();
+        let single_any = gpu.any_hits(Accel::kd(Algorithm::Stack), &grouped).unwrap();
         for accel in gpu_grouped() {
             let hits = gpu.closest_hits(accel, &grouped).unwrap();
             let bad: Vec<usize> = (0..n).filter(|&k| hits[k] != single[k]).collect();
@@ -220,7 +221,7 @@ fn run_scene(name: &str, scene: &Scene, n_random: usize) {
     let (rays, hard) = hard_rays(scene, &tree, n_random, 11);
     let hits = check(name, scene, &tree, &rays, hard);
     let grouped: Vec<Ray> = octant_order(&rays[hard..]).into_iter().map(|i| rays[hard + i]).collect();
-    let coherent = CpuTracer::new(scene, Some(&tree)).coherent_packets(&grouped);
+    let coherent = kdray::analysis::coherent_packets(&grouped);
     assert!(4 * coherent >= grouped.len() * 9 / 10, "{name}: only {coherent} of the random rays' packets are coherent");
     let hit_frac = hits.iter().filter(|h| h.is_hit()).count() as f64 / hits.len() as f64;
     println!("{name}: {} rays, {:.1} % hit, tree {:?}", rays.len(), 100.0 * hit_frac, tree.stats);
@@ -249,11 +250,11 @@ fn closed_sphere_far_from_origin_every_traversal() {
         .into_iter()
         .map(|d| Ray::new(center.to_array(), d, 0.0, f32::INFINITY))
         .collect();
-    let cpu = CpuTracer::new(&scene, Some(&tree));
+    let cpu = Tracer::new(&NATIVE, &scene, Some(&tree)).unwrap();
     for alg in cpu_algorithms() {
-        let misses = cpu.closest_hits(Accel::Kd(alg), &rays).unwrap().iter().filter(|h| !h.is_hit()).count();
+        let misses = cpu.closest_hits(Accel::kd(alg), &rays).unwrap().iter().filter(|h| !h.is_hit()).count();
         assert_eq!(misses, 0, "CPU {alg:?}: {misses} of 10^6 rays leaked");
-        let misses = cpu.any_hits(Accel::Kd(alg), &rays).unwrap().iter().filter(|h| !**h).count();
+        let misses = cpu.any_hits(Accel::kd(alg), &rays).unwrap().iter().filter(|h| !**h).count();
         assert_eq!(misses, 0, "CPU {alg:?} any-hit: {misses} of 10^6 rays leaked");
     }
     let grouped: Vec<Ray> = octant_order(&rays).into_iter().map(|i| rays[i]).collect();
@@ -264,7 +265,7 @@ fn closed_sphere_far_from_origin_every_traversal() {
         assert_eq!(misses, 0, "CPU {} any-hit: {misses} of 10^6 rays leaked", accel.name());
     }
     if let Some(g) = common::gpu() {
-        let gpu = GpuTracer::new(g, &scene, Some(&tree)).unwrap();
+        let gpu = Tracer::new(g, &scene, Some(&tree)).unwrap();
         for accel in Accel::all().into_iter().skip(1) {
             let rays = if GPU_FULL.contains(&accel) { &rays[..] } else { &rays[..GPU_SAMPLE] };
             let misses = gpu.closest_hits(accel, &rays).unwrap().iter().filter(|h| !h.is_hit()).count();

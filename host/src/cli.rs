@@ -1,9 +1,11 @@
 //! The `kdray` command line.
-use crate::gpu::{self, tracer::GpuTracer, Gpu};
+use crate::accel::Accel;
+use crate::gpu::{self, Gpu};
 use crate::image_out::{compare, write_png};
+use crate::integrator::direct;
 use crate::kdtree::{self, BuildOptions, KdTreeData};
-use crate::trace::Accel;
-use crate::{scene, CpuTracer, Tracer};
+use crate::runtime::cpu::NATIVE;
+use crate::{scene, Runtime, Tracer};
 use anyhow::{bail, Result};
 use clap::{Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -29,10 +31,25 @@ pub enum PipelineArg {
     Decomposed,
 }
 
-#[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
+/// `gpu` (the best adapter), `gpu:N` (adapter N of `kdray adapters`) or `cpu`.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub enum DeviceArg {
-    Gpu,
+    Gpu(usize),
     Cpu,
+}
+
+impl std::str::FromStr for DeviceArg {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "cpu" => Ok(DeviceArg::Cpu),
+            "gpu" => Ok(DeviceArg::Gpu(0)),
+            s => match s.strip_prefix("gpu:").map(str::parse::<usize>) {
+                Some(Ok(n)) => Ok(DeviceArg::Gpu(n)),
+                _ => Err(format!("unknown device '{s}': use gpu, gpu:N (see `kdray adapters`) or cpu")),
+            },
+        }
+    }
 }
 
 /// kd-tree build options (SAH constants and limits).
@@ -78,8 +95,9 @@ pub enum Command {
         /// `cornell` (built in), a .obj file or a .toml scene file.
         #[arg(long, default_value = "cornell")]
         scene: String,
-        /// Where to trace; default: the GPU, or the CPU with a warning if there is no GPU.
-        #[arg(long, value_enum)]
+        /// Where to trace: gpu, gpu:N (adapter N of `kdray adapters`) or cpu; default: the
+        /// best GPU, or the CPU with a warning if there is no GPU.
+        #[arg(long)]
         device: Option<DeviceArg>,
         /// Image width and height in pixels.
         #[arg(long, default_value_t = 512)]
@@ -111,7 +129,7 @@ pub enum Command {
         #[arg(long, value_enum, default_value = "scanline")]
         ray_order: RayOrderArg,
         /// Leaf-list entries per ray of the decomposed pipeline.
-        #[arg(long, default_value_t = crate::trace::DEFAULT_LEAF_CAPACITY)]
+        #[arg(long, default_value_t = crate::accel::DEFAULT_LEAF_CAPACITY)]
         leaf_capacity: u32,
         /// Mirror reflections followed per pixel (only scenes with mirrors trace them).
         #[arg(long, default_value_t = 4)]
@@ -132,7 +150,8 @@ pub enum Command {
         /// Scenes (repeatable) instead of the suite's own: built-in names, .obj or .toml files.
         #[arg(long)]
         scene: Vec<String>,
-        #[arg(long, value_enum, default_value = "gpu")]
+        /// gpu, gpu:N or cpu.
+        #[arg(long, default_value = "gpu")]
         device: DeviceArg,
         /// Image width and height of the ray batches.
         #[arg(long, default_value_t = 1024)]
@@ -172,17 +191,17 @@ pub fn run(cli: Cli) -> Result<()> {
             if list.is_empty() {
                 bail!("no GPU adapter: wgpu found no Vulkan device");
             }
-            for a in list {
-                println!("{}", gpu::describe(&a.get_info()));
+            for (i, a) in list.iter().enumerate() {
+                println!("gpu:{i}  {}", gpu::describe(&a.get_info()));
             }
             if compile {
                 let g = Gpu::new()?;
-                for k in crate::gpu::kernels::Kernel::all() {
+                for e in &gpu::module_info()?.entry_points {
                     use std::io::Write as _;
-                    print!("compiling {} ... ", k.entry_point()?);
+                    print!("compiling {} ... ", gpu::short_name(&e.name));
                     std::io::stdout().flush()?;
                     let start = Instant::now();
-                    g.compile(k)?;
+                    g.compile(&e.name)?;
                     println!("{:.2} s", start.elapsed().as_secs_f64());
                 }
             }
@@ -199,7 +218,7 @@ pub fn run(cli: Cli) -> Result<()> {
                 bail!("unknown bench suite '{suite}' (known: {}, all)", crate::bench::SUITES.join(", "));
             }
             let gpu = match device {
-                DeviceArg::Gpu => Some(Gpu::new()?),
+                DeviceArg::Gpu(i) => Some(Gpu::open(i)?),
                 DeviceArg::Cpu => None,
             };
             println!("device: {}", crate::bench::device_line(gpu.as_ref()));
@@ -259,7 +278,7 @@ pub fn run(cli: Cli) -> Result<()> {
                 scene.materials.len(),
                 scene.lights().len()
             );
-            let tree = accel.needs_tree().then(|| build_tree(&scene, &opts));
+            let tree = if accel.needs_tree() { Some(build_tree(&scene, &opts)?) } else { None };
             let tree = tree.as_ref();
             let mut cam = scene.camera.to_pod(size, size);
             if ray_order == RayOrderArg::Tiles {
@@ -267,7 +286,7 @@ pub fn run(cli: Cli) -> Result<()> {
             }
             let gpu = match device {
                 Some(DeviceArg::Cpu) => None,
-                Some(DeviceArg::Gpu) => Some(Gpu::new()?),
+                Some(DeviceArg::Gpu(i)) => Some(Gpu::open(i)?),
                 None => match Gpu::new() {
                     Ok(g) => Some(g),
                     Err(e) => {
@@ -276,20 +295,16 @@ pub fn run(cli: Cli) -> Result<()> {
                     }
                 },
             };
-            let cpu = CpuTracer::new(&scene, tree);
-            let gpu_tracer = match &gpu {
-                Some(g) => Some(GpuTracer::new(g, &scene, tree)?),
-                None => None,
+            let rt: &dyn Runtime = match &gpu {
+                Some(g) => g,
+                None => &NATIVE,
             };
-            let primary: &dyn Tracer = match &gpu_tracer {
-                Some(t) => t,
-                None => &cpu,
-            };
-            let render = |t: &dyn Tracer| -> Result<crate::RenderOutput> {
+            let render = |rt: &dyn Runtime| -> Result<crate::RenderOutput> {
+                let t = Tracer::new(rt, &scene, tree)?;
                 println!("device: {}, traversal {}", t.device_name(), accel.name());
                 let pb = progress("render");
                 let start = Instant::now();
-                let r = t.render(accel, &cam, seed, bounces, &pb)?;
+                let r = direct::render(&t, accel, &cam, seed, bounces, &pb)?;
                 pb.finish_and_clear();
                 let secs = start.elapsed().as_secs_f64();
                 println!(
@@ -299,14 +314,14 @@ pub fn run(cli: Cli) -> Result<()> {
                 );
                 Ok(r)
             };
-            let img = render(primary)?;
+            let img = render(rt)?;
             write_png(&img, exposure, &out)?;
             println!("wrote {}", out.display());
             if cmp {
-                if gpu_tracer.is_none() {
+                if gpu.is_none() {
                     bail!("--compare needs a GPU adapter");
                 }
-                let other = render(&cpu)?;
+                let other = render(&NATIVE)?;
                 let stem = out.with_extension("");
                 let cpu_path = PathBuf::from(format!("{}-cpu.png", stem.display()));
                 write_png(&other, exposure, &cpu_path)?;
@@ -338,8 +353,8 @@ fn render_accel(traversal: Option<&str>, packets: bool, pipeline: PipelineArg, l
 }
 
 /// Builds the kd-tree and prints what it cost.
-pub fn build_tree(scene: &scene::Scene, opts: &BuildOptions) -> KdTreeData {
-    let t = kdtree::build(&scene.triangles, opts);
+pub fn build_tree(scene: &scene::Scene, opts: &BuildOptions) -> Result<KdTreeData> {
+    let t = kdtree::try_build(&scene.triangles, opts)?;
     let s = &t.stats;
     println!(
         "kd-tree: {} nodes, {} leaves ({} empty), {:.2} triangles per leaf, depth {} (limit {}), SAH cost {:.1}, {:.2} MiB, built in {:.3} s",
@@ -353,5 +368,5 @@ pub fn build_tree(scene: &scene::Scene, opts: &BuildOptions) -> KdTreeData {
         s.bytes as f64 / 1048576.0,
         s.build_seconds
     );
-    t
+    Ok(t)
 }

@@ -1,5 +1,5 @@
 //! From linear radiance to PNG, and pixel-by-pixel comparison of two renders.
-use crate::trace::RenderOutput;
+use crate::integrator::RenderOutput;
 use anyhow::{Context, Result};
 use std::path::Path;
 

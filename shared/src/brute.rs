@@ -1,6 +1,6 @@
 //! Brute-force closest-hit and any-hit over a triangle list: the oracle every accelerated
 //! traversal is checked against. Ties in t keep the lower primitive index.
-use crate::kdtree::{AnyHit, Closest};
+use crate::query::{AnyHit, Closest};
 use crate::pod::{Hit, Triangle};
 use crate::ray::Ray;
 use crate::triangle::{intersect_triangle, ShearedRay};

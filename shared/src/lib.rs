@@ -8,11 +8,17 @@ pub mod aabb;
 pub mod brute;
 pub mod camera;
 pub mod kdtree;
+pub mod kernel;
 pub mod math;
 pub mod pod;
+pub mod query;
 pub mod ray;
+pub mod render;
 pub mod rng;
 pub mod shade;
+mod sizes;
+pub mod stats;
+pub mod trace;
 pub mod triangle;
 
 pub use pod::*;

@@ -1,5 +1,5 @@
 //! Buffer layouts shared by host and kernels: `#[repr(C)]`, `Pod`, scalars and scalar arrays
-//! only (std430-compatible, no padding surprises). Sizes are asserted in the host tests.
+//! only (std430-compatible, no padding surprises). Sizes are compile-time assertions (`sizes`).
 use bytemuck::{Pod, Zeroable};
 
 /// `Hit::prim` of a ray that hit nothing.
@@ -95,27 +95,49 @@ pub const ORDER_SCANLINE: u32 = 0;
 /// 32 an 8×4 half tile (see `camera::pixel`).
 pub const ORDER_TILES: u32 = 1;
 
-/// Per-dispatch parameters (one read-only storage buffer, binding 0 of every kernel).
+/// Push constants of the ray-query kernels (closest / any hit, packets, the decomposed
+/// pipeline): how many rays, the scene box (the structure's root cell) and the leaf-list
+/// capacity of the decomposed pipeline.
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
-pub struct FrameParams {
-    /// Work items in this dispatch.
+pub struct TraceParams {
+    /// Rays in this dispatch.
     pub count: u32,
-    /// Global index of item 0 (pixel index of the first ray of a batch).
+    /// Entries per ray of the decomposed pipeline's leaf lists.
+    pub leaf_capacity: u32,
+    pub _pad: [u32; 2],
+    pub bounds_min: [f32; 3],
+    pub _pad1: u32,
+    pub bounds_max: [f32; 3],
+    pub _pad2: u32,
+}
+
+/// Push constants of the renderer's kernels (camera rays, path steps, accumulation).
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct RenderParams {
+    /// Paths in this dispatch.
+    pub count: u32,
+    /// Index (in the camera's ray order) of the batch's first path.
     pub first: u32,
     pub seed: u32,
     pub light_count: u32,
-    /// Scene box (the kd-tree's root cell).
-    pub bounds_min: [f32; 3],
     /// Which bounce of the paths this dispatch shades (0 = primary hits).
     pub bounce: u32,
-    pub bounds_max: [f32; 3],
     /// Mirror reflections followed before a path is shaded as diffuse.
     pub max_bounces: u32,
+    pub _pad: [u32; 2],
     pub camera: Camera,
-    /// Entries per ray of the decomposed pipeline's leaf lists.
-    pub leaf_capacity: u32,
-    pub _pad: [u32; 3],
+}
+
+/// Push constants of simple per-item kernels (`rng_fill`).
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct ItemParams {
+    pub count: u32,
+    pub first: u32,
+    pub seed: u32,
+    pub _pad: u32,
 }
 
 /// What shading needs after the shadow ray: radiance reaching the eye regardless of the shadow

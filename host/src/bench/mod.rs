@@ -16,13 +16,17 @@ mod table;
 pub use suites::{run_suite, Options, Scenes, SUITES};
 pub use table::{write_cells, write_rows, Row};
 
-use crate::gpu::{self, median, tracer::GpuTracer, Gpu};
+use crate::accel::{Accel, Pipeline};
+use crate::gpu::{self, median, Gpu};
 use crate::kdtree::KdTreeData;
+use crate::runtime::cpu::NATIVE;
 use crate::scene::Scene;
-use crate::trace::Accel;
-use crate::{CpuTracer, Tracer};
+use crate::tracer::Tracer;
+use crate::analysis;
 use anyhow::Result;
-use kdray_shared::kdtree::{Algorithm, Counters};
+use kdray_shared::kdtree::Algorithm;
+use kdray_shared::query::{AnyHit, Closest};
+use kdray_shared::stats::Counters;
 use kdray_shared::rng::Rng;
 use kdray_shared::Ray;
 use std::time::Instant;
@@ -73,8 +77,8 @@ pub fn device_line(g: Option<&Gpu>) -> String {
 pub struct Bed<'a> {
     pub scene: &'a Scene,
     pub tree: &'a KdTreeData,
-    pub cpu: CpuTracer<'a>,
-    pub gpu: Option<GpuTracer<'a>>,
+    pub cpu: Tracer<'a>,
+    pub gpu: Option<(&'a Gpu, Tracer<'a>)>,
     pub size: u32,
     pub reps: usize,
 }
@@ -84,9 +88,9 @@ impl<'a> Bed<'a> {
         Ok(Bed {
             scene,
             tree,
-            cpu: CpuTracer::new(scene, Some(tree)),
+            cpu: Tracer::new(&NATIVE, scene, Some(tree))?,
             gpu: match gpu {
-                Some(g) => Some(GpuTracer::new(g, scene, Some(tree))?),
+                Some(g) => Some((g, Tracer::new(g, scene, Some(tree))?)),
                 None => None,
             },
             size,
@@ -95,10 +99,30 @@ impl<'a> Bed<'a> {
     }
 
     /// The runtime being measured.
-    pub fn tracer(&self) -> &dyn Tracer {
+    pub fn tracer(&self) -> &Tracer<'a> {
         match &self.gpu {
-            Some(g) => g,
+            Some((_, t)) => t,
             None => &self.cpu,
+        }
+    }
+
+    /// Times the passes that answer `set`'s queries with `accel` on the GPU (one batch).
+    pub fn time(&self, g: &Gpu, t: &Tracer, accel: Accel, closest: bool, rays: &[Ray], reps: usize) -> Result<crate::gpu::Timing> {
+        t.check(accel)?;
+        if t.batch_size(accel, rays.len()) < rays.len() {
+            anyhow::bail!("{} rays do not fit one GPU batch", rays.len());
+        }
+        let rt: &dyn crate::Runtime = g;
+        let rbuf = rt.upload("ray", rays)?;
+        let lists = t.leaf_lists(accel, rays.len())?;
+        if closest {
+            let out = rt.alloc::<kdray_shared::Hit>("result", rays.len())?;
+            let passes = t.query_passes::<Closest>(accel, rays.len(), &rbuf, &out, lists.as_ref())?;
+            g.time_passes(&passes.iter().map(|k| k.as_ref()).collect::<Vec<_>>(), reps)
+        } else {
+            let out = rt.alloc::<u32>("result", rays.len())?;
+            let passes = t.query_passes::<AnyHit>(accel, rays.len(), &rbuf, &out, lists.as_ref())?;
+            g.time_passes(&passes.iter().map(|k| k.as_ref()).collect::<Vec<_>>(), reps)
         }
     }
 
@@ -112,8 +136,8 @@ impl<'a> Bed<'a> {
         };
         Ok(RaySet {
             kind: kind.into(),
-            oracle: answers(&self.cpu, Accel::Brute, &sample, closest)?,
-            reference: answers(&self.cpu, Accel::Kd(Algorithm::Stack), &rays, closest)?,
+            oracle: answers(&self.cpu, Accel::BRUTE, &sample, closest)?,
+            reference: answers(&self.cpu, Accel::kd(Algorithm::Stack), &rays, closest)?,
             rays,
             sample,
             closest,
@@ -123,10 +147,10 @@ impl<'a> Bed<'a> {
     /// Times `accel` on `set` (median of `reps` runs after a warm-up), counts its work per ray
     /// natively, and checks its answers against the oracle sample and the reference.
     pub fn measure(&self, set: &RaySet, accel: Accel) -> Result<Row> {
-        let counts = self.cpu.count(accel, &set.rays, set.closest)?;
+        let counts = analysis::counts(&self.scene.triangles, self.tree, accel, &set.rays, set.closest)?;
         let spread_text;
         let (wall, gpu_ms, parts, got) = match &self.gpu {
-            Some(g) => {
+            Some((g, gt)) => {
                 // Three attempts, each with fresh ray and result buffers, the lowest median
                 // kept: on the H100 the same kernel on the same rays ran up to 5× slower in
                 // some attempts than in others, steadily within an attempt (see
@@ -134,7 +158,7 @@ impl<'a> Bed<'a> {
                 let mut best: Option<crate::gpu::Timing> = None;
                 let mut medians = Vec::new();
                 for _ in 0..ATTEMPTS {
-                    let t = g.time(accel, set.closest, &set.rays, self.reps)?;
+                    let t = self.time(g, gt, accel, set.closest, &set.rays, self.reps)?;
                     let m = median(if t.gpu_ms.is_empty() { &t.wall_ms } else { &t.gpu_ms }).unwrap_or(f64::NAN);
                     if medians.iter().all(|b| m < *b) {
                         best = Some(t);
@@ -150,7 +174,7 @@ impl<'a> Bed<'a> {
                     medians.iter().copied().fold(f64::INFINITY, f64::min),
                     medians.iter().copied().fold(0.0, f64::max)
                 );
-                (median(&t.wall_ms).unwrap_or(f64::NAN), median(&t.gpu_ms), parts, answers(g, accel, &set.rays, set.closest)?)
+                (median(&t.wall_ms).unwrap_or(f64::NAN), median(&t.gpu_ms), parts, answers(gt, accel, &set.rays, set.closest)?)
             }
             None => {
                 let mut times = Vec::new();
@@ -170,13 +194,13 @@ impl<'a> Bed<'a> {
         let n = set.rays.len();
         let per_ray = |f: fn(&Counters) -> u32| counts.iter().map(|c| f(c) as f64).sum::<f64>() / n.max(1) as f64;
         let mut notes = vec![spread_text];
-        if let Accel::Packet(_) = accel {
-            let coherent = self.cpu.coherent_packets(&set.rays);
+        if accel.is_packet() {
+            let coherent = analysis::coherent_packets(&set.rays);
             notes.push(format!("{:.1} % of packets coherent", 100.0 * coherent as f64 / n.div_ceil(4).max(1) as f64));
         }
         let mut fallbacks = None;
-        if let Accel::Decomposed { capacity } = accel {
-            let f = self.cpu.decomposed_fallbacks(&set.rays, capacity, set.closest)?;
+        if let Pipeline::Decomposed { capacity } = accel.pipeline {
+            let f = analysis::decomposed_fallbacks(&self.scene.triangles, self.tree, &set.rays, capacity, set.closest);
             fallbacks = Some(f);
             notes.push(format!(
                 "fallback {f} rays ({:.2} %), leaf lists {:.1} MiB",
@@ -234,7 +258,7 @@ pub struct RaySet {
 }
 
 /// Answers as numbers: the hit triangle id (closest hit) or 1/0 (any hit).
-pub fn answers(t: &dyn Tracer, accel: Accel, rays: &[Ray], closest: bool) -> Result<Vec<u32>> {
+pub fn answers(t: &Tracer, accel: Accel, rays: &[Ray], closest: bool) -> Result<Vec<u32>> {
     Ok(if closest {
         t.closest_hits(accel, rays)?.iter().map(|h| h.prim).collect()
     } else {

@@ -3,8 +3,9 @@
 //! the n-th mirror reflection.
 use crate::kdtree::KdTreeData;
 use crate::scene::Scene;
-use crate::trace::Accel;
-use crate::{CpuTracer, Tracer};
+use crate::accel::Accel;
+use crate::runtime::cpu::NATIVE;
+use crate::tracer::Tracer;
 use anyhow::Result;
 use kdray_shared::kdtree::Algorithm;
 use kdray_shared::{camera, shade, PathState, Ray};
@@ -29,7 +30,7 @@ pub fn tiled_order(scene: &Scene, size: u32) -> Vec<u32> {
 /// bounce n: rays of paths reflected n times by mirrors), the shadow rays of bounce 0 and the
 /// pixel of each shadow ray.
 pub fn bounces(scene: &Scene, tree: &KdTreeData, size: u32, max_bounces: u32) -> Result<(Vec<Vec<Ray>>, Vec<Ray>, Vec<u32>)> {
-    let cpu = CpuTracer::new(scene, Some(tree));
+    let cpu = Tracer::new(&NATIVE, scene, Some(tree))?;
     let lights = scene.lights();
     let mut rays = primary(scene, size);
     let mut paths: Vec<PathState> = (0..rays.len() as u32).map(PathState::start).collect();
@@ -37,7 +38,7 @@ pub fn bounces(scene: &Scene, tree: &KdTreeData, size: u32, max_bounces: u32) ->
     let mut shadow = Vec::new();
     let mut shadow_pixels = Vec::new();
     for bounce in 0..=max_bounces {
-        let hits = cpu.closest_hits(Accel::Kd(Algorithm::Stack), &rays)?;
+        let hits = cpu.closest_hits(Accel::kd(Algorithm::Stack), &rays)?;
         let mut next = (Vec::new(), Vec::new());
         for (k, (ray, hit)) in rays.iter().zip(&hits).enumerate() {
             let mut ray = *ray;

@@ -3,12 +3,10 @@
 use super::plot::{bar_chart, line_chart, BarChart, LineChart, Series};
 use super::table::{markdown, write_cells, write_rows, Row};
 use super::{answers, device_line, dump, mismatch, rays, Bed, RaySet};
-use crate::gpu::kernels::Kernel;
 use crate::gpu::{median, Gpu};
 use crate::kdtree::{self, BuildOptions, KdTreeData};
 use crate::scene::{self, Scene};
-use crate::trace::Accel;
-use crate::Tracer;
+use crate::accel::Accel;
 use anyhow::{bail, Result};
 use indicatif::ProgressBar;
 use kdray_shared::kdtree::Algorithm;
@@ -43,7 +41,7 @@ impl Scenes {
     pub fn get(&mut self, spec: &str, opts: &BuildOptions) -> Result<&(Scene, KdTreeData)> {
         if !self.loaded.contains_key(spec) {
             let s = scene::load(spec)?;
-            let t = kdtree::build(&s.triangles, opts);
+            let t = kdtree::try_build(&s.triangles, opts)?;
             self.loaded.insert(spec.to_string(), (s, t));
         }
         Ok(&self.loaded[spec])
@@ -133,7 +131,7 @@ fn primary_and_shadow(o: &Options, bed: &Bed) -> Result<(RaySet, RaySet)> {
 
 fn dump_set(o: &Options, bed: &Bed, set: &RaySet) -> Result<()> {
     let Some(dir) = &o.dump_rays else { return Ok(()) };
-    let accel = Accel::Kd(Algorithm::Stack);
+    let accel = Accel::kd(Algorithm::Stack);
     if set.closest {
         dump::write_batch(dir, bed.scene, &set.kind, &set.rays, Some(&bed.cpu.closest_hits(accel, &set.rays)?), None)
     } else {
@@ -142,13 +140,13 @@ fn dump_set(o: &Options, bed: &Bed, set: &RaySet) -> Result<()> {
 }
 
 const HORN_ROWS: [(&str, Accel); 7] = [
-    ("full stack (baseline)", Accel::Kd(Algorithm::Stack)),
-    ("kd-restart", Accel::Kd(Algorithm::Restart)),
-    ("+ packets", Accel::Packet(Algorithm::Restart)),
-    ("+ push-down", Accel::Packet(Algorithm::PushDown)),
-    ("+ short-stack (3)", Accel::Packet(Algorithm::ShortStack(3))),
-    ("push-down, single rays", Accel::Kd(Algorithm::PushDown)),
-    ("short-stack (3), single rays", Accel::Kd(Algorithm::ShortStack(3))),
+    ("full stack (baseline)", Accel::kd(Algorithm::Stack)),
+    ("kd-restart", Accel::kd(Algorithm::Restart)),
+    ("+ packets", Accel::packet(Algorithm::Restart)),
+    ("+ push-down", Accel::packet(Algorithm::PushDown)),
+    ("+ short-stack (3)", Accel::packet(Algorithm::ShortStack(3))),
+    ("push-down, single rays", Accel::kd(Algorithm::PushDown)),
+    ("short-stack (3), single rays", Accel::kd(Algorithm::ShortStack(3))),
 ];
 
 /// Horn et al. 2007, Table 1: Mrays/s of the cumulative variants for primary (PS) and shadow
@@ -213,7 +211,7 @@ fn horn(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
 /// packets (coherence falls bounce after bounce).
 fn bounces(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
     const MAX: u32 = 4;
-    let methods = [Accel::Kd(Algorithm::ShortStack(3)), Accel::Packet(Algorithm::ShortStack(3)), Accel::Kd(Algorithm::Stack), Accel::Packet(Algorithm::Stack)];
+    let methods = [Accel::kd(Algorithm::ShortStack(3)), Accel::packet(Algorithm::ShortStack(3)), Accel::kd(Algorithm::Stack), Accel::packet(Algorithm::Stack)];
     let specs = o.scenes.clone().unwrap_or_else(|| vec!["cornell-mirrors".into()]);
     o.progress.set_length((specs.len() * (MAX as usize + 1) * methods.len()) as u64);
     let mut rows = Vec::new();
@@ -233,7 +231,7 @@ fn bounces(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
             }
             let set = bed.ray_set(format!("reflection {n}"), r, true)?;
             dump_set(o, &bed, &set)?;
-            let coherent = bed.cpu.coherent_packets(&set.rays) as f64 / set.rays.len().div_ceil(4) as f64;
+            let coherent = crate::analysis::coherent_packets(&set.rays) as f64 / set.rays.len().div_ceil(4) as f64;
             let mut line = vec![n.to_string(), set.rays.len().to_string(), format!("{:.1} %", 100.0 * coherent)];
             for (m, accel) in methods.iter().enumerate() {
                 let row = bed.measure(&set, *accel)?;
@@ -246,7 +244,7 @@ fn bounces(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
         }
         summary += &format!("### {}\n\n{}\n", scene.name, markdown(&header, &cells));
         for (m, accel) in methods.iter().enumerate() {
-            curves.push(Series { name: format!("{} {}", scene.name, accel.name()), points: points[m].clone(), dashed: matches!(accel, Accel::Kd(_)) });
+            curves.push(Series { name: format!("{} {}", scene.name, accel.name()), points: points[m].clone(), dashed: !accel.is_packet() });
         }
     }
     let mut files = finish(o, "bounces", "Reflection rays with and without packets (Horn et al., Diagram 1)", &summary, &rows)?;
@@ -259,7 +257,7 @@ fn bounces(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
 /// The photon-mapping paper's Fig. 7: primary-ray speed against scene size on `chairs:K`, with
 /// c/log N and c/log² N through the first point; build time and memory per N.
 fn scaling(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
-    let methods = [Accel::Kd(Algorithm::Stack), Accel::Kd(Algorithm::ShortStack(3))];
+    let methods = [Accel::kd(Algorithm::Stack), Accel::kd(Algorithm::ShortStack(3))];
     let ks: Vec<u32> = std::iter::successors(Some(1u32), |k| Some(k * 4)).take_while(|k| *k <= o.max_chairs).collect();
     o.progress.set_length((ks.len() * methods.len()) as u64);
     let mut rows = Vec::new();
@@ -311,15 +309,34 @@ fn scaling(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
     Ok(files)
 }
 
-/// Where a kernel's time goes in the breakdown.
-fn stage(k: Kernel) -> &'static str {
-    match k {
-        Kernel::TraverseLeaves => "traverse",
-        Kernel::IntersectLeaves { .. } => "intersect",
-        Kernel::Fallback { .. } => "fallback",
-        Kernel::Closest(_) | Kernel::Any(_) => "trace",
-        _ => "shade",
+/// Where a kernel's time goes in the breakdown, by entry point.
+fn stage(entry: &str) -> &'static str {
+    if entry == "traverse_leaves" {
+        "traverse"
+    } else if entry.ends_with("_leaves") {
+        "intersect"
+    } else if entry.ends_with("_fallback") {
+        "fallback"
+    } else if entry.starts_with("closest_") || entry.starts_with("any_") {
+        "trace"
+    } else {
+        "shade"
     }
+}
+
+/// Times every pass of a whole `direct` frame (which must fit one batch): the kernels' entry
+/// points in order and their timings.
+fn time_frame(g: &crate::Gpu, t: &crate::Tracer, accel: Accel, cam: &kdray_shared::Camera, reps: usize) -> Result<(Vec<String>, crate::gpu::Timing)> {
+    use crate::integrator::direct;
+    t.check(accel)?;
+    let n = (cam.width * cam.height) as usize;
+    if t.batch_size(accel, n) < n {
+        anyhow::bail!("a {}x{} frame does not fit one GPU batch", cam.width, cam.height);
+    }
+    let fb = direct::FrameBuffers::new(t, accel, n)?;
+    let passes = direct::passes(t, accel, &direct::params(t, cam, 1, 4, 0, n), &fb)?;
+    let timing = g.time_passes(&passes.iter().map(|k| k.as_ref()).collect::<Vec<_>>(), reps)?;
+    Ok((passes.iter().map(|k| k.entry().into_owned()).collect(), timing))
 }
 
 const STAGES: [&str; 5] = ["traverse", "intersect", "fallback", "trace", "shade"];
@@ -328,9 +345,9 @@ const STAGES: [&str; 5] = ["traverse", "intersect", "fallback", "trace", "shade"
 /// the decomposed pipeline, next to the monolithic short-stack kernels, with the image
 /// difference between the two (0 expected), fallback rays and leaf-list memory.
 fn breakdown(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
-    let capacity = crate::trace::DEFAULT_LEAF_CAPACITY;
-    let decomposed = Accel::Decomposed { capacity };
-    let monolithic = Accel::Kd(Algorithm::ShortStack(3));
+    let capacity = crate::accel::DEFAULT_LEAF_CAPACITY;
+    let decomposed = Accel::decomposed(capacity);
+    let monolithic = Accel::kd(Algorithm::ShortStack(3));
     let mut specs = horn_scenes(o);
     if o.scenes.is_none() {
         specs.push("chairs:1024".into());
@@ -354,19 +371,19 @@ fn breakdown(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
         }
         let cam = scene.camera.to_pod(o.size, o.size);
         let pb = ProgressBar::hidden();
-        let a = bed.tracer().render(decomposed, &cam, 1, 4, &pb)?;
-        let b = bed.tracer().render(monolithic, &cam, 1, 4, &pb)?;
+        let a = crate::integrator::direct::render(bed.tracer(), decomposed, &cam, 1, 4, &pb)?;
+        let b = crate::integrator::direct::render(bed.tracer(), monolithic, &cam, 1, 4, &pb)?;
         let differ = a.radiance.iter().zip(&b.radiance).zip(a.hits.iter().zip(&b.hits)).filter(|((x, y), (h, k))| x != y || h.prim != k.prim).count();
         let list_mib = super::leaf_list_mib(primary.rays.len(), capacity);
-        let Some(g) = &bed.gpu else {
+        let Some((g, gt)) = &bed.gpu else {
             cells.push(vec![scene.name.clone(), scene.triangles.len().to_string(), "–".into(), "–".into(), "–".into(), "–".into(), "–".into(), "–".into(), "–".into(), fallbacks.to_string(), format!("{list_mib:.1}"), differ.to_string()]);
             continue;
         };
         for accel in [decomposed, monolithic] {
-            let (kernels, t) = g.time_frame(accel, &cam, 1, 4, o.reps)?;
+            let (kernels, t) = time_frame(g, gt, accel, &cam, o.reps)?;
             let mut ms = [0.0f64; 5];
             for (k, part) in kernels.iter().zip(&t.parts_ms) {
-                let i = STAGES.iter().position(|s| *s == stage(*k)).expect("known stage");
+                let i = STAGES.iter().position(|s| *s == stage(k)).expect("known stage");
                 ms[i] += median(part).unwrap_or(0.0);
             }
             let total: f64 = ms.iter().sum();
@@ -425,7 +442,7 @@ fn build(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
         // The tree answers like the oracle (a sample of primary rays, full stack, natively).
         let bed = Bed::new(scene, tree, None, 64, 1)?;
         let set = bed.ray_set("primary", rays::primary(scene, 64), true)?;
-        let got = answers(&bed.cpu, Accel::Kd(Algorithm::Stack), &set.sample, true)?;
+        let got = answers(&bed.cpu, Accel::kd(Algorithm::Stack), &set.sample, true)?;
         let per_m = s.build_seconds / (scene.triangles.len() as f64 / 1e6);
         cells.push(vec![
             scene.name.clone(),
@@ -464,7 +481,7 @@ fn visits(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
     let header: Vec<String> = ["scene", "ray type", "traversal", "nodes/ray", "vs stack", "leaves/ray", "tris/ray", "restarts/ray", "oracle mismatch"].map(String::from).to_vec();
     let mut cells = Vec::new();
     let mut series = Vec::new();
-    let mut summary_cells: Vec<Vec<String>> = algs.iter().map(|a| vec![format!("`{}`", Accel::Kd(*a).name())]).collect();
+    let mut summary_cells: Vec<Vec<String>> = algs.iter().map(|a| vec![format!("`{}`", Accel::kd(*a).name())]).collect();
     let mut names = Vec::new();
     for spec in &specs {
         let (scene, tree) = scenes.get(spec, &o.build)?;
@@ -475,10 +492,10 @@ fn visits(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
             let mut stack_nodes = 0.0;
             let mut curve = Vec::new();
             for (i, alg) in algs.iter().enumerate() {
-                let accel = Accel::Kd(*alg);
-                let c = bed.cpu.count(accel, &set.rays, set.closest)?;
+                let accel = Accel::kd(*alg);
+                let c = crate::analysis::counts(&scene.triangles, tree, accel, &set.rays, set.closest)?;
                 let n = set.rays.len().max(1) as f64;
-                let sum = |f: fn(&kdray_shared::kdtree::Counters) -> u32| c.iter().map(|x| f(x) as f64).sum::<f64>() / n;
+                let sum = |f: fn(&kdray_shared::stats::Counters) -> u32| c.iter().map(|x| f(x) as f64).sum::<f64>() / n;
                 let nodes = sum(|x| x.nodes);
                 if *alg == Algorithm::Stack {
                     stack_nodes = nodes;
@@ -526,9 +543,9 @@ fn visits(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
 /// Morton order inside: `render --ray-order tiles`).
 fn order(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
     let methods = [
-        Accel::Kd(Algorithm::Stack),
-        Accel::Kd(Algorithm::ShortStack(3)),
-        Accel::Packet(Algorithm::ShortStack(3)),
+        Accel::kd(Algorithm::Stack),
+        Accel::kd(Algorithm::ShortStack(3)),
+        Accel::packet(Algorithm::ShortStack(3)),
     ];
     let specs = horn_scenes(o);
     o.progress.set_length((specs.len() * 4 * methods.len()) as u64);

@@ -1,14 +1,17 @@
-//! The wgpu runtime: adapter choice, device limits, SPIR-V pipelines, buffers and bounded
-//! dispatches. Kernels are loaded as passthrough SPIR-V (no WGSL, no naga translation).
-pub mod kernels;
-pub mod tracer;
+//! The wgpu runtime: adapter choice, device limits, SPIR-V pipelines, buffers, bounded
+//! dispatches. Kernels are loaded as passthrough SPIR-V (no WGSL, no naga translation); what
+//! each entry point declares — workgroup size, bindings by name with element size and
+//! read-only flag, push-constant size — is read from the module itself (`reflect`), and every
+//! pass is checked against it before it is recorded: a mismatch between a host kernel
+//! declaration and the shader is an error naming the kernel and the binding, never a wrong
+//! binding. Pipelines and bind groups are cached; read-backs go through reused staging buffers
+//! and are waited for apart from submission.
+pub mod reflect;
 
+use crate::runtime::{Access, Buffer, Commands, Kernel, Mem, Pending, PendingData, RawBuffer, Runtime};
 use anyhow::{anyhow, bail, Context, Result};
-use bytemuck::Pod;
-use kdray_shared::FrameParams;
-use kernels::{Kernel, WORKGROUP};
 use std::collections::HashMap;
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 static SPIRV: &[u8] = include_bytes!(env!("kdray_shader.spv"));
@@ -23,16 +26,95 @@ const WARM_UP: Duration = Duration::from_millis(100);
 /// An idle GPU longer than this is warmed up for a second before the next measurement.
 const IDLE: Duration = Duration::from_millis(250);
 
+/// Largest push-constant block a kernel family may use (Vulkan guarantees 128 bytes).
+const MAX_PARAMS: u32 = 128;
+
+/// The words of the SPIR-V module built from `shader-crate/`, without its source-line
+/// instructions (`OpLine`, `OpNoLine`: debug information only; the build keeps variable names,
+/// which leaves `OpNoLine`s behind, and the module is then word for word what a build without
+/// names gives, apart from the names).
+pub fn spirv_words() -> Vec<u32> {
+    const OP_LINE: u32 = 8;
+    const OP_NO_LINE: u32 = 317;
+    let words: Vec<u32> = SPIRV.chunks_exact(4).map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]])).collect();
+    let mut out = Vec::with_capacity(words.len());
+    out.extend_from_slice(&words[..words.len().min(5)]);
+    let mut i = 5;
+    while i < words.len() {
+        let n = (words[i] >> 16) as usize;
+        if n == 0 || i + n > words.len() {
+            // Malformed: leave the rest as it is (reflection reports it).
+            out.extend_from_slice(&words[i..]);
+            break;
+        }
+        let op = words[i] & 0xffff;
+        if op != OP_LINE && op != OP_NO_LINE {
+            out.extend_from_slice(&words[i..i + n]);
+        }
+        i += n;
+    }
+    out
+}
+
+/// The module's entry points as reflected (parsed once).
+pub fn module_info() -> Result<&'static reflect::Module> {
+    static M: std::sync::OnceLock<Result<reflect::Module, String>> = std::sync::OnceLock::new();
+    M.get_or_init(|| reflect::parse(&spirv_words()).map_err(|e| format!("{e:#}")))
+        .as_ref()
+        .map_err(|e| anyhow!("the built-in SPIR-V module cannot be read: {e}"))
+}
+
+/// The entry point a kernel names: `family::name` in the module (rust-gpu qualifies entry
+/// points by their module), found by its full name or, when unique, by its last segment.
+pub fn find_entry<'m>(m: &'m reflect::Module, name: &str) -> Option<&'m reflect::EntryPoint> {
+    m.entry_point(name).or_else(|| {
+        let suffix = format!("::{name}");
+        let mut it = m.entry_points.iter().filter(|e| e.name.ends_with(&suffix));
+        match (it.next(), it.next()) {
+            (Some(e), None) => Some(e),
+            _ => None,
+        }
+    })
+}
+
+/// The short name of an entry point (without its module path).
+pub fn short_name(full: &str) -> &str {
+    full.rsplit("::").next().unwrap_or(full)
+}
+
+struct Pipeline {
+    pipeline: wgpu::ComputePipeline,
+    layout: wgpu::BindGroupLayout,
+    info: reflect::EntryPoint,
+}
+
+/// A recorded copy into a staging buffer and the submission that carries it.
+pub(crate) struct Readback {
+    staging: wgpu::Buffer,
+    bytes: u64,
+    submission: Mutex<Option<wgpu::SubmissionIndex>>,
+}
+
 pub struct Gpu {
     pub device: wgpu::Device,
     pub queue: wgpu::Queue,
     pub info: wgpu::AdapterInfo,
     pub limits: wgpu::Limits,
+    /// Position of the adapter in `adapters()`.
+    pub index: usize,
     /// Whether passes can carry timestamp queries (GPU-side kernel times).
     pub timestamps: bool,
     module: wgpu::ShaderModule,
     /// Created on first use: drivers compile each entry point when its pipeline is made.
-    pipelines: Mutex<HashMap<Kernel, (wgpu::ComputePipeline, wgpu::BindGroupLayout)>>,
+    pipelines: Mutex<HashMap<String, Arc<Pipeline>>>,
+    /// Bind groups by entry point and buffer ids (dropped with their buffers).
+    bind_groups: Mutex<HashMap<(String, Vec<u64>), wgpu::BindGroup>>,
+    /// Ids of dropped buffers not yet purged from `bind_groups`.
+    dead: Arc<Mutex<Vec<u64>>>,
+    /// Staging buffers for read-backs, reused.
+    staging: Mutex<Vec<wgpu::Buffer>>,
+    /// Parameter buffers of kernels that take their parameters from a buffer, by value.
+    params: Mutex<HashMap<Vec<u8>, RawBuffer>>,
     /// When a timed measurement last finished (to tell how long the GPU has idled).
     last_timed: Mutex<Option<std::time::Instant>>,
 }
@@ -59,27 +141,54 @@ pub fn adapters() -> Vec<wgpu::Adapter> {
 }
 
 pub fn describe(info: &wgpu::AdapterInfo) -> String {
-    format!(
-        "{} ({:?}, {:?}, driver {} {})",
-        info.name, info.backend, info.device_type, info.driver, info.driver_info
-    )
+    format!("{} ({:?}, {:?}, driver {} {})", info.name, info.backend, info.device_type, info.driver, info.driver_info)
 }
+
+const NO_ADAPTER: &str =
+    "no GPU adapter: wgpu found no Vulkan device (install a Vulkan driver, e.g. Mesa's lavapipe: apt-get install mesa-vulkan-drivers)";
 
 impl Gpu {
     /// Opens the best Vulkan adapter. Fails with a clear message when there is none.
     pub fn new() -> Result<Gpu> {
-        let adapter = adapters()
-            .into_iter()
-            .next()
-            .ok_or_else(|| anyhow!("no GPU adapter: wgpu found no Vulkan device (install a Vulkan driver, e.g. Mesa's lavapipe: apt-get install mesa-vulkan-drivers)"))?;
-        Self::with_adapter(adapter)
+        Self::open(0)
     }
 
-    pub fn with_adapter(adapter: wgpu::Adapter) -> Result<Gpu> {
+    /// Opens adapter `index` of `adapters()` (best first).
+    pub fn open(index: usize) -> Result<Gpu> {
+        let list = adapters();
+        if list.is_empty() {
+            bail!(NO_ADAPTER);
+        }
+        let n = list.len();
+        let adapter = list.into_iter().nth(index).ok_or_else(|| anyhow!("no GPU adapter {index}: there are {n} (see `kdray adapters`)"))?;
+        Self::with_adapter(adapter, index)
+    }
+
+    /// Opens every adapter that can run the kernels (one runtime per device), best first;
+    /// adapters that cannot (no SPIR-V passthrough) are skipped with a warning.
+    pub fn open_all() -> Result<Vec<Gpu>> {
+        let list = adapters();
+        if list.is_empty() {
+            bail!(NO_ADAPTER);
+        }
+        let mut out = Vec::new();
+        for (i, a) in list.into_iter().enumerate() {
+            match Self::with_adapter(a, i) {
+                Ok(g) => out.push(g),
+                Err(e) => eprintln!("warning: GPU adapter {i} skipped: {e:#}"),
+            }
+        }
+        if out.is_empty() {
+            bail!("no GPU adapter can run the kernels");
+        }
+        Ok(out)
+    }
+
+    pub fn with_adapter(adapter: wgpu::Adapter, index: usize) -> Result<Gpu> {
         let info = adapter.get_info();
-        let mut features = wgpu::Features::PASSTHROUGH_SHADERS;
+        let mut features = wgpu::Features::PASSTHROUGH_SHADERS | wgpu::Features::IMMEDIATES;
         if !adapter.features().contains(features) {
-            bail!("GPU adapter {} does not accept SPIR-V passthrough shaders", describe(&info));
+            bail!("GPU adapter {} does not accept SPIR-V passthrough shaders with push constants", describe(&info));
         }
         let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
         if timestamps {
@@ -88,11 +197,15 @@ impl Gpu {
         // Ask for everything the adapter offers for storage buffers: scenes are limited by the
         // device, not by wgpu's conservative defaults.
         let a = adapter.limits();
+        if a.max_immediate_size < MAX_PARAMS {
+            bail!("GPU adapter {} offers {} bytes of push constants, the kernels need {MAX_PARAMS}", describe(&info), a.max_immediate_size);
+        }
         let limits = wgpu::Limits {
             max_storage_buffer_binding_size: a.max_storage_buffer_binding_size,
             max_buffer_size: a.max_buffer_size,
             max_storage_buffers_per_shader_stage: a.max_storage_buffers_per_shader_stage.min(16),
             max_compute_workgroups_per_dimension: a.max_compute_workgroups_per_dimension,
+            max_immediate_size: MAX_PARAMS,
             ..wgpu::Limits::default()
         };
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
@@ -102,19 +215,16 @@ impl Gpu {
             ..Default::default()
         }))
         .with_context(|| format!("cannot open GPU device {}", describe(&info)))?;
-        let spirv: Vec<u32> = SPIRV
-            .chunks_exact(4)
-            .map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
-            .collect();
-        let entry_points: Vec<wgpu::PassthroughShaderEntryPoint> = kernels::ENTRY_POINTS
+        let m = module_info()?;
+        let entry_points: Vec<wgpu::PassthroughShaderEntryPoint> = m
+            .entry_points
             .iter()
-            .map(|name| wgpu::PassthroughShaderEntryPoint {
-                name: (*name).into(),
-                workgroup_size: (WORKGROUP, 1, 1),
-            })
+            .map(|e| wgpu::PassthroughShaderEntryPoint { name: e.name.clone().into(), workgroup_size: (e.workgroup_size[0], e.workgroup_size[1], e.workgroup_size[2]) })
             .collect();
+        let spirv = spirv_words();
         // SAFETY: the module is the rust-gpu output of shader-crate, validated by spirv-val at
-        // build time; its entry points and bindings are the ones listed in `kernels`.
+        // build time; its entry points are the ones it declares (reflected above), and every
+        // pipeline layout is made from the bindings it declares.
         let module = unsafe {
             device.create_shader_module_passthrough(wgpu::ShaderModuleDescriptorPassthrough {
                 label: Some("kdray-shader"),
@@ -123,41 +233,70 @@ impl Gpu {
                 ..Default::default()
             })
         };
-        Ok(Gpu { device, queue, info, limits, timestamps, module, pipelines: Mutex::new(HashMap::new()), last_timed: Mutex::new(None) })
+        Ok(Gpu {
+            device,
+            queue,
+            info,
+            limits,
+            index,
+            timestamps,
+            module,
+            pipelines: Mutex::new(HashMap::new()),
+            bind_groups: Mutex::new(HashMap::new()),
+            dead: Arc::new(Mutex::new(Vec::new())),
+            staging: Mutex::new(Vec::new()),
+            params: Mutex::new(HashMap::new()),
+            last_timed: Mutex::new(None),
+        })
     }
 
-    fn pipeline(&self, k: Kernel) -> Result<(wgpu::ComputePipeline, wgpu::BindGroupLayout)> {
+    fn pipeline(&self, name: &str) -> Result<Arc<Pipeline>> {
         let mut cache = self.pipelines.lock().expect("pipeline cache");
-        if let Some(p) = cache.get(&k) {
+        if let Some(p) = cache.get(name) {
             return Ok(p.clone());
         }
-        let name = k.entry_point()?;
-        let mut entries = vec![storage_entry(0, true)];
-        entries.extend(k.bindings().iter().enumerate().map(|(i, ro)| storage_entry(i as u32 + 1, *ro)));
-        let bgl = self.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        let m = module_info()?;
+        let info = find_entry(m, name).cloned().ok_or_else(|| {
+            let stem = name.split('_').next().unwrap_or(name);
+            let similar: Vec<&str> = m.entry_points.iter().map(|e| short_name(&e.name)).filter(|e| e.starts_with(stem)).collect();
+            anyhow!("the SPIR-V module has no kernel '{name}' (kernels like it: {})", similar.join(", "))
+        })?;
+        let entries: Vec<wgpu::BindGroupLayoutEntry> = info
+            .bindings
+            .iter()
+            .map(|b| wgpu::BindGroupLayoutEntry {
+                binding: b.binding,
+                visibility: wgpu::ShaderStages::COMPUTE,
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Storage { read_only: b.read_only },
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+                count: None,
+            })
+            .collect();
+        let layout = self.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(name), entries: &entries });
+        let pl = self.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some(name),
-            entries: &entries,
-        });
-        let layout = self.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some(name),
-            bind_group_layouts: &[Some(&bgl)],
-            immediate_size: 0,
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: info.push_constant_size,
         });
         let pipeline = self.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
             label: Some(name),
-            layout: Some(&layout),
+            layout: Some(&pl),
             module: &self.module,
-            entry_point: Some(name),
+            entry_point: Some(&info.name),
             compilation_options: Default::default(),
             cache: None,
         });
-        cache.insert(k, (pipeline.clone(), bgl.clone()));
-        Ok((pipeline, bgl))
+        let p = Arc::new(Pipeline { pipeline, layout, info });
+        cache.insert(name.to_string(), p.clone());
+        Ok(p)
     }
 
-    /// Creates the pipeline of `kernel` now (the driver compiles it), instead of on first use.
-    pub fn compile(&self, kernel: Kernel) -> Result<()> {
-        self.pipeline(kernel).map(|_| ())
+    /// Creates the pipeline of entry point `name` now (the driver compiles it).
+    pub fn compile(&self, name: &str) -> Result<()> {
+        self.pipeline(name).map(|_| ())
     }
 
     pub fn adapter_line(&self) -> String {
@@ -169,125 +308,171 @@ impl Gpu {
         self.limits.max_storage_buffer_binding_size.min(self.limits.max_buffer_size)
     }
 
-    /// A storage buffer holding `data` (one zeroed element if empty: bindings cannot be empty).
-    /// Fails with a clear message when it exceeds the device's binding limit.
-    pub fn upload<T: Pod + Default>(&self, label: &str, data: &[T]) -> Result<wgpu::Buffer> {
-        let one = [T::default()];
-        let data = if data.is_empty() { &one[..] } else { data };
-        let bytes: &[u8] = bytemuck::cast_slice(data);
-        self.check_size(label, bytes.len() as u64)?;
-        let buf = self.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some(label),
-            size: bytes.len() as u64,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
-        self.queue.write_buffer(&buf, 0, bytes);
-        Ok(buf)
-    }
-
-    /// An uninitialised storage buffer of `n` elements of `T`.
-    pub fn storage<T: Pod>(&self, label: &str, n: usize) -> Result<wgpu::Buffer> {
-        let size = (n.max(1) * std::mem::size_of::<T>()) as u64;
-        self.check_size(label, size)?;
-        Ok(self.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some(label),
-            size,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        }))
-    }
-
+    /// Fails with "scene too large for this device" when a buffer of `bytes` cannot be bound.
     pub fn check_size(&self, label: &str, bytes: u64) -> Result<()> {
-        let max = self.max_binding();
-        if bytes > max {
-            bail!(
-                "scene too large for this GPU: the {label} buffer needs {:.1} MiB but {} allows at most {:.1} MiB per storage buffer",
-                bytes as f64 / 1048576.0,
-                self.info.name,
-                max as f64 / 1048576.0
-            );
+        (self as &dyn Runtime).check_size(label, bytes)
+    }
+
+    /// The buffer holding parameters `bytes` (made once per distinct value, then reused).
+    fn params_buffer(&self, bytes: &[u8]) -> Result<u64> {
+        let mut cache = self.params.lock().expect("params cache");
+        if let Some(b) = cache.get(bytes) {
+            return Ok(b.id());
         }
-        Ok(())
+        if cache.len() >= 1024 {
+            // Dropped buffers stay alive while submitted work uses them (wgpu tracks that).
+            cache.clear();
+        }
+        let b = self.alloc_raw("params", bytes.len() as u64)?;
+        self.write_raw(&b, bytes)?;
+        let id = b.id();
+        cache.insert(bytes.to_vec(), b);
+        Ok(id)
     }
 
-    /// Records one dispatch of `kernel` over `params.count` items into `encoder`.
-    /// The items are laid out on a 2D grid of workgroups so no dimension exceeds the limit.
-    pub fn record(
+    /// The pass's bind group (cached by entry point and buffers), its buffers checked against
+    /// the module.
+    fn bind_group(&self, p: &Pipeline, k: &dyn Kernel) -> Result<wgpu::BindGroup> {
+        let host = k.bindings();
+        let order = validate(k, &host, &p.info)?;
+        let params = if order.contains(&Slot::Params) { Some(self.params_buffer(k.params())?) } else { None };
+        // Buffer ids in binding order: the cache key.
+        let ids: Vec<u64> = order
+            .iter()
+            .map(|s| match s {
+                Slot::Host(i) => host[*i].buffer.id(),
+                Slot::Params => params.unwrap_or(0),
+            })
+            .collect();
+        let mut cache = self.bind_groups.lock().expect("bind group cache");
+        let dead: Vec<u64> = std::mem::take(&mut *self.dead.lock().expect("dead buffers"));
+        if !dead.is_empty() {
+            cache.retain(|(_, key), _| !key.iter().any(|id| dead.contains(id)));
+        }
+        let key = (p.info.name.clone(), ids);
+        if let Some(bg) = cache.get(&key) {
+            return Ok(bg.clone());
+        }
+        let name = k.entry();
+        let pcache = self.params.lock().expect("params cache");
+        let pbuf = match params {
+            Some(_) => pcache.get(k.params()).and_then(|b| b.gpu()),
+            None => None,
+        };
+        let mut buffers = Vec::with_capacity(order.len());
+        for s in &order {
+            buffers.push(match s {
+                Slot::Host(i) => host[*i].buffer.gpu().ok_or_else(|| anyhow!("kernel {name}: buffer '{}' is host memory, not this GPU's", host[*i].buffer.label()))?,
+                Slot::Params => pbuf.ok_or_else(|| anyhow!("kernel {name}: parameter buffer missing"))?,
+            });
+        }
+        let entries: Vec<wgpu::BindGroupEntry> = p
+            .info
+            .bindings
+            .iter()
+            .zip(&buffers)
+            .map(|(b, buf)| wgpu::BindGroupEntry { binding: b.binding, resource: buf.as_entire_binding() })
+            .collect();
+        let bg = self.device.create_bind_group(&wgpu::BindGroupDescriptor { label: Some(&name), layout: &p.layout, entries: &entries });
+        cache.insert(key, bg.clone());
+        Ok(bg)
+    }
+
+    /// Records one pass, direct (`threads`) or indirect (`(args, byte offset)`), with
+    /// timestamps at its start and end into queries `2i`, `2i + 1` of `timer = (queries, i)`.
+    fn record(
         &self,
-        encoder: &mut wgpu::CommandEncoder,
-        kernel: Kernel,
-        params: &FrameParams,
-        buffers: &[&wgpu::Buffer],
+        enc: &mut wgpu::CommandEncoder,
+        k: &dyn Kernel,
+        indirect: Option<(&wgpu::Buffer, u64)>,
+        timer: Option<(&wgpu::QuerySet, u32)>,
     ) -> Result<()> {
-        self.record_pass(encoder, &Pass { kernel, params: *params, buffers: buffers.to_vec() }, None)
-    }
-
-    /// Records `pass`, writing timestamps at its start and end into queries `2i` and `2i + 1` of
-    /// `timer = (queries, i)`.
-    fn record_pass(&self, encoder: &mut wgpu::CommandEncoder, pass: &Pass, timer: Option<(&wgpu::QuerySet, u32)>) -> Result<()> {
-        let Pass { kernel, params, buffers } = pass;
-        let kernel = *kernel;
-        let (pipeline, bgl) = &self.pipeline(kernel)?;
-        assert_eq!(buffers.len(), kernel.bindings().len(), "binding count of {kernel:?}");
-        let pbuf = self.upload("params", std::slice::from_ref(params))?;
-        let mut entries = vec![wgpu::BindGroupEntry { binding: 0, resource: pbuf.as_entire_binding() }];
-        entries.extend(
-            buffers
-                .iter()
-                .enumerate()
-                .map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32 + 1, resource: b.as_entire_binding() }),
-        );
-        let bg = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some(kernel.entry_point()?),
-            layout: bgl,
-            entries: &entries,
-        });
-        let (gx, gy) = self.grid(kernel.threads(params.count))?;
-        let mut cpass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some(kernel.entry_point()?),
+        let name = k.entry();
+        let p = self.pipeline(&name)?;
+        let bg = self.bind_group(&p, k)?;
+        let grid = match indirect {
+            None => Some(self.grid(k.threads(), k.workgroup())?),
+            Some(_) => None,
+        };
+        let mut cpass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some(&name),
             timestamp_writes: timer.map(|(q, i)| wgpu::ComputePassTimestampWrites {
                 query_set: q,
                 beginning_of_pass_write_index: Some(2 * i),
                 end_of_pass_write_index: Some(2 * i + 1),
             }),
         });
-        cpass.set_pipeline(pipeline);
+        cpass.set_pipeline(&p.pipeline);
         cpass.set_bind_group(0, &bg, &[]);
-        if gx > 0 {
-            cpass.dispatch_workgroups(gx, gy, 1);
+        if p.info.push_constant_size > 0 {
+            cpass.set_immediates(0, k.params());
+        }
+        match (indirect, grid) {
+            (Some((buf, off)), _) => cpass.dispatch_workgroups_indirect(buf, off),
+            (None, Some((gx, gy))) if gx > 0 => cpass.dispatch_workgroups(gx, gy, 1),
+            _ => {}
         }
         Ok(())
     }
 
-    /// Records a sequence of passes.
-    pub fn record_passes(&self, encoder: &mut wgpu::CommandEncoder, passes: &[Pass]) -> Result<()> {
-        passes.iter().try_for_each(|p| self.record_pass(encoder, p, None))
-    }
-
-    /// Workgroup grid (x, y) covering `count` items.
-    pub fn grid(&self, count: u32) -> Result<(u32, u32)> {
-        let groups = count.div_ceil(WORKGROUP);
+    /// Workgroup grid (x, y) covering `threads` threads in groups of `wg`.
+    pub fn grid(&self, threads: u32, wg: u32) -> Result<(u32, u32)> {
+        let groups = threads.div_ceil(wg);
         let max = self.limits.max_compute_workgroups_per_dimension;
         let gx = groups.min(max);
         let gy = if gx == 0 { 0 } else { groups.div_ceil(gx) };
         if gy > max {
-            bail!("dispatch of {count} items exceeds the device's workgroup grid");
+            bail!("dispatch of {threads} threads exceeds the device's workgroup grid");
         }
-        Ok((gx, gy.max(if gx == 0 { 0 } else { 1 })))
+        Ok((gx, gy))
+    }
+
+    fn encoder(&self) -> wgpu::CommandEncoder {
+        self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None })
+    }
+
+    /// Submits and waits, with an upper bound on the wait.
+    fn submit_wait(&self, encoder: wgpu::CommandEncoder) -> Result<()> {
+        let idx = self.queue.submit([encoder.finish()]);
+        self.poll(Some(idx))
+    }
+
+    fn poll(&self, idx: Option<wgpu::SubmissionIndex>) -> Result<()> {
+        self.device
+            .poll(wgpu::PollType::Wait { submission_index: idx, timeout: Some(SUBMIT_TIMEOUT) })
+            .map_err(|e| anyhow!("GPU did not finish: {e}"))?;
+        Ok(())
+    }
+
+    /// A staging buffer of at least `bytes` bytes from the pool, or a new one.
+    fn take_staging(&self, bytes: u64) -> wgpu::Buffer {
+        let mut pool = self.staging.lock().expect("staging pool");
+        if let Some(i) = pool.iter().position(|b| b.size() >= bytes && b.size() <= bytes.max(1 << 16) * 4) {
+            return pool.swap_remove(i);
+        }
+        self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("read-back"),
+            size: bytes.max(4).next_multiple_of(4),
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        })
+    }
+
+    fn return_staging(&self, b: wgpu::Buffer) {
+        let mut pool = self.staging.lock().expect("staging pool");
+        // A few buffers are enough for double-buffered batches.
+        if pool.len() < 8 {
+            pool.push(b);
+        }
     }
 
     /// Runs a sequence of passes `reps` times after a warm-up (`WARM_UP`). Per run: the wall time from
     /// submit to completion and, where the adapter has timestamp queries, the GPU time from the
     /// start of the first pass to the end of the last and the GPU time of each pass (ms).
-    pub fn time_passes(&self, passes: &[Pass], reps: usize) -> Result<Timing> {
+    pub fn time_passes(&self, passes: &[&dyn Kernel], reps: usize) -> Result<Timing> {
         let n = passes.len() as u32;
         let qs = self.timestamps.then(|| {
-            self.device.create_query_set(&wgpu::QuerySetDescriptor {
-                label: Some("pass timer"),
-                ty: wgpu::QueryType::Timestamp,
-                count: 2 * n,
-            })
+            self.device.create_query_set(&wgpu::QuerySetDescriptor { label: Some("pass timer"), ty: wgpu::QueryType::Timestamp, count: 2 * n })
         });
         let resolve = self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("timestamps"),
@@ -310,7 +495,7 @@ impl Gpu {
         while runs < 3 || (warm.elapsed() < WARM_UP && runs < 1000) {
             let mut enc = self.encoder();
             for p in passes {
-                self.record_pass(&mut enc, p, None)?;
+                self.record(&mut enc, *p, None, None)?;
             }
             self.submit_wait(enc)?;
             runs += 1;
@@ -318,7 +503,7 @@ impl Gpu {
         for _ in 0..reps {
             let mut enc = self.encoder();
             for (i, p) in passes.iter().enumerate() {
-                self.record_pass(&mut enc, p, qs.as_ref().map(|q| (q, i as u32)))?;
+                self.record(&mut enc, *p, None, qs.as_ref().map(|q| (q, i as u32)))?;
             }
             if let Some(q) = &qs {
                 enc.resolve_query_set(q, 0..2 * n, &resolve, 0);
@@ -327,7 +512,7 @@ impl Gpu {
             self.submit_wait(enc)?;
             t.wall_ms.push(start.elapsed().as_secs_f64() * 1e3);
             if qs.is_some() {
-                let ticks: Vec<u64> = self.read(&resolve, 2 * n as usize)?;
+                let ticks: Vec<u64> = self.read_plain(&resolve, 16 * n as u64)?;
                 t.gpu_ms.push(ticks[2 * n as usize - 1].wrapping_sub(ticks[0]) as f64 * period);
                 for (i, part) in t.parts_ms.iter_mut().enumerate() {
                     part.push(ticks[2 * i + 1].wrapping_sub(ticks[2 * i]) as f64 * period);
@@ -343,14 +528,15 @@ impl Gpu {
     /// seconds of a process ran the same kernels up to 5× slower.
     pub fn warm_up(&self, d: Duration) -> Result<()> {
         let n = 1usize << 20;
-        let out = self.storage::<[u32; 4]>("warm-up", n)?;
+        let rt: &dyn Runtime = self;
+        let out = rt.alloc::<[u32; 4]>("warm-up", n)?;
         let start = std::time::Instant::now();
         let mut seed = 0;
         while start.elapsed() < d && seed < 100_000 {
             let mut enc = self.encoder();
-            let p = FrameParams { count: n as u32, seed, ..Default::default() };
+            let k = crate::kernels::RngFill::new(n as u32, 0, seed, &out);
             for _ in 0..4 {
-                self.record(&mut enc, Kernel::RngFill, &p, &[&out])?;
+                self.record(&mut enc, &k, None, None)?;
             }
             self.submit_wait(enc)?;
             seed += 1;
@@ -358,57 +544,230 @@ impl Gpu {
         Ok(())
     }
 
-    pub fn encoder(&self) -> wgpu::CommandEncoder {
-        self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None })
+    /// Copies a non-storage buffer (timestamps) back.
+    fn read_plain<T: bytemuck::Pod>(&self, buf: &wgpu::Buffer, bytes: u64) -> Result<Vec<T>> {
+        let staging = self.take_staging(bytes);
+        let mut enc = self.encoder();
+        enc.copy_buffer_to_buffer(buf, 0, &staging, 0, bytes);
+        let idx = self.queue.submit([enc.finish()]);
+        let r = Readback { staging, bytes, submission: Mutex::new(Some(idx)) };
+        Ok(bytemuck::pod_collect_to_vec(&self.map(&r)?))
     }
 
-    /// Submits and waits, with an upper bound on the wait.
-    pub fn submit_wait(&self, encoder: wgpu::CommandEncoder) -> Result<()> {
-        let idx = self.queue.submit([encoder.finish()]);
-        self.device
-            .poll(wgpu::PollType::Wait { submission_index: Some(idx), timeout: Some(SUBMIT_TIMEOUT) })
-            .map_err(|e| anyhow!("GPU did not finish: {e}"))?;
-        Ok(())
-    }
-
-    /// Copies the first `n` elements of `buf` back to the host.
-    pub fn read<T: Pod>(&self, buf: &wgpu::Buffer, n: usize) -> Result<Vec<T>> {
-        let size = (n * std::mem::size_of::<T>()) as u64;
-        if size == 0 {
+    fn map(&self, r: &Readback) -> Result<Vec<u32>> {
+        if r.bytes == 0 {
             return Ok(Vec::new());
         }
-        let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("readback"),
-            size,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let mut enc = self.encoder();
-        enc.copy_buffer_to_buffer(buf, 0, &staging, 0, size);
-        self.submit_wait(enc)?;
-        let slice = staging.slice(..);
+        let idx = r.submission.lock().expect("read-back").clone();
+        if idx.is_none() {
+            bail!("a read-back was waited for before its commands were submitted");
+        }
+        let slice = r.staging.slice(..r.bytes);
         let (tx, rx) = std::sync::mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |r| {
-            let _ = tx.send(r);
+        slice.map_async(wgpu::MapMode::Read, move |res| {
+            let _ = tx.send(res);
         });
-        self.device
-            .poll(wgpu::PollType::Wait { submission_index: None, timeout: Some(SUBMIT_TIMEOUT) })
-            .map_err(|e| anyhow!("GPU did not finish: {e}"))?;
-        rx.recv()?.map_err(|e| anyhow!("cannot read GPU buffer: {e}"))?;
+        self.poll(idx)?;
+        rx.recv_timeout(SUBMIT_TIMEOUT)
+            .map_err(|_| anyhow!("GPU read-back did not complete"))?
+            .map_err(|e| anyhow!("cannot read GPU buffer: {e}"))?;
         let view = slice.get_mapped_range().map_err(|e| anyhow!("cannot map GPU buffer: {e:?}"))?;
-        let out = bytemuck::cast_slice::<u8, T>(&view).to_vec();
+        let out: Vec<u32> = bytemuck::pod_collect_to_vec(&view);
         drop(view);
-        staging.unmap();
+        r.staging.unmap();
         Ok(out)
     }
 }
 
-/// One dispatch: a kernel, its parameters and its buffers (bindings 1..).
-#[derive(Clone)]
-pub struct Pass<'a> {
-    pub kernel: Kernel,
-    pub params: FrameParams,
-    pub buffers: Vec<&'a wgpu::Buffer>,
+/// Where an entry point's binding comes from.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum Slot {
+    /// The host binding of this index.
+    Host(usize),
+    /// The kernel's parameters (`Kernel::params`), which the runtime puts in a small buffer:
+    /// for entry points that take them as a storage buffer named `params` rather than as
+    /// push constants.
+    Params,
+}
+
+/// The name of the binding that carries a kernel's parameters when they are not push constants.
+pub const PARAMS: &str = "params";
+
+/// Checks a pass against what its entry point declares in the module: parameter size (push
+/// constants, or the `params` buffer), workgroup size, and each binding (matched by name, or
+/// by position where the module carries no names) for element size and access. Returns where
+/// each binding of the entry point comes from. Both runtimes call this, so a wrong declaration
+/// fails natively too (in CI without a GPU), naming the kernel and the binding.
+pub fn validate(k: &dyn Kernel, host: &[crate::runtime::Bind], info: &reflect::EntryPoint) -> Result<Vec<Slot>> {
+    let name = k.entry();
+    let params = k.params().len() as u32;
+    let params_binding = info.bindings.iter().find(|b| b.name.as_deref() == Some(PARAMS) && !host.iter().any(|h| h.name == PARAMS));
+    let declared = match params_binding {
+        Some(b) => b.element_size.unwrap_or(0),
+        None => info.push_constant_size,
+    };
+    if params != declared {
+        bail!("kernel {name}: the host passes {params} bytes of parameters, the shader declares {declared}");
+    }
+    if k.workgroup() != info.workgroup_size[0] || info.workgroup_size[1] != 1 || info.workgroup_size[2] != 1 {
+        bail!("kernel {name}: the host dispatches workgroups of {}, the shader declares {:?}", k.workgroup(), info.workgroup_size);
+    }
+    let by_name = info.bindings.iter().all(|b| b.name.is_some());
+    let mut order = Vec::with_capacity(info.bindings.len());
+    for (pos, b) in info.bindings.iter().enumerate() {
+        if params_binding.is_some_and(|p| p.binding == b.binding) {
+            if !b.read_only {
+                bail!("kernel {name}: its parameter buffer must be read-only");
+            }
+            order.push(Slot::Params);
+            continue;
+        }
+        let i = if by_name {
+            let bn = b.name.as_deref().unwrap_or_default();
+            host.iter().position(|h| h.name == bn).ok_or_else(|| anyhow!("kernel {name}: binding '{bn}' ({}) is not supplied by the host", b.binding))?
+        } else if pos < host.len() {
+            pos
+        } else {
+            bail!("kernel {name}: binding {} is not supplied by the host", b.binding)
+        };
+        let h = &host[i];
+        if let Some(e) = b.element_size {
+            if e != h.elem {
+                bail!("kernel {name}: binding '{}' holds elements of {e} bytes in the shader, {} on the host", h.name, h.elem);
+            }
+        }
+        match (h.access, b.read_only) {
+            (Access::Read, false) => bail!("kernel {name}: binding '{}' is written by the shader but bound for reading", h.name),
+            (Access::Write, true) => bail!("kernel {name}: binding '{}' is read-only in the shader but bound for writing", h.name),
+            _ => {}
+        }
+        order.push(Slot::Host(i));
+    }
+    if by_name {
+        if let Some(extra) = host.iter().find(|h| !info.bindings.iter().any(|b| b.name.as_deref() == Some(h.name))) {
+            if extra.access == Access::Write {
+                bail!("kernel {name}: the host binds '{}' for writing but the shader has no such binding", extra.name);
+            }
+        }
+    } else if host.len() != info.bindings.len() {
+        bail!("kernel {name}: the host binds {} buffers, the shader declares {}", host.len(), info.bindings.len());
+    }
+    Ok(order)
+}
+
+/// Checks a pass natively against the module's entry point of the same name (see `validate`).
+/// A kernel the module does not carry passes: the native runtime instantiates more variants of
+/// a family than the module does (short stacks of 1..=8 entries, the module a few), and those
+/// share their declaration with the family's other members, which are checked.
+pub fn check_kernel(k: &dyn Kernel) -> Result<()> {
+    let m = module_info()?;
+    match find_entry(m, &k.entry()) {
+        Some(info) => validate(k, &k.bindings(), info).map(|_| ()),
+        None => Ok(()),
+    }
+}
+
+impl Runtime for Gpu {
+    fn name(&self) -> String {
+        self.adapter_line()
+    }
+
+    fn is_native(&self) -> bool {
+        false
+    }
+
+    fn max_binding(&self) -> u64 {
+        Gpu::max_binding(self)
+    }
+
+    fn alloc_raw(&self, label: &str, bytes: u64) -> Result<RawBuffer> {
+        let size = bytes.max(4).next_multiple_of(4);
+        let buffer = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::INDIRECT,
+            // wgpu zero-initialises new buffers.
+            mapped_at_creation: false,
+        });
+        Ok(RawBuffer::new(label, size, Mem::Gpu { buffer, dead: self.dead.clone() }))
+    }
+
+    fn write_raw(&self, buf: &RawBuffer, data: &[u8]) -> Result<()> {
+        let b = buf.gpu().ok_or_else(|| anyhow!("buffer '{}' is host memory, not this GPU's", buf.label()))?;
+        if data.len() as u64 > buf.bytes() {
+            bail!("{}: {} bytes written into a buffer of {}", buf.label(), data.len(), buf.bytes());
+        }
+        if data.len() % 4 != 0 {
+            let mut padded = data.to_vec();
+            padded.resize(data.len().next_multiple_of(4), 0);
+            self.queue.write_buffer(b, 0, &padded);
+        } else if !data.is_empty() {
+            self.queue.write_buffer(b, 0, data);
+        }
+        Ok(())
+    }
+
+    fn begin(&self) -> Commands {
+        Commands { encoder: Some(self.encoder()), readbacks: Vec::new() }
+    }
+
+    fn clear(&self, c: &mut Commands, buf: &RawBuffer) -> Result<()> {
+        let b = buf.gpu().ok_or_else(|| anyhow!("buffer '{}' is host memory, not this GPU's", buf.label()))?;
+        c.encoder.as_mut().ok_or_else(|| anyhow!("commands of another runtime"))?.clear_buffer(b, 0, None);
+        Ok(())
+    }
+
+    fn dispatch(&self, c: &mut Commands, k: &dyn Kernel) -> Result<()> {
+        let enc = c.encoder.as_mut().ok_or_else(|| anyhow!("commands of another runtime"))?;
+        self.record(enc, k, None, None)
+    }
+
+    fn dispatch_indirect(&self, c: &mut Commands, k: &dyn Kernel, args: &Buffer<[u32; 3]>, index: usize) -> Result<()> {
+        let b = args.raw().gpu().ok_or_else(|| anyhow!("indirect arguments in host memory"))?;
+        if index >= args.len() {
+            bail!("{}: indirect arguments {index} of {}", k.entry(), args.len());
+        }
+        let enc = c.encoder.as_mut().ok_or_else(|| anyhow!("commands of another runtime"))?;
+        self.record(enc, k, Some((b, 12 * index as u64)), None)
+    }
+
+    fn read_back(&self, c: &mut Commands, buf: &RawBuffer, bytes: u64) -> Result<Pending> {
+        let b = buf.gpu().ok_or_else(|| anyhow!("buffer '{}' is host memory, not this GPU's", buf.label()))?;
+        let bytes = bytes.min(buf.bytes()).next_multiple_of(4).min(buf.bytes());
+        let staging = self.take_staging(bytes);
+        if bytes > 0 {
+            c.encoder.as_mut().ok_or_else(|| anyhow!("commands of another runtime"))?.copy_buffer_to_buffer(b, 0, &staging, 0, bytes);
+        }
+        let r = Arc::new(Readback { staging, bytes, submission: Mutex::new(None) });
+        c.readbacks.push(r.clone());
+        Ok(Pending { bytes, data: PendingData::Gpu(r) })
+    }
+
+    fn submit(&self, c: Commands) -> Result<()> {
+        let enc = c.encoder.ok_or_else(|| anyhow!("commands of another runtime"))?;
+        let idx = self.queue.submit([enc.finish()]);
+        for r in &c.readbacks {
+            *r.submission.lock().expect("read-back") = Some(idx.clone());
+        }
+        Ok(())
+    }
+
+    fn wait(&self, p: Pending) -> Result<Vec<u32>> {
+        let r = match p.data {
+            PendingData::Gpu(r) => r,
+            PendingData::Ready(v) => return Ok(v),
+        };
+        let mut out = self.map(&r)?;
+        out.truncate(p.bytes as usize / 4);
+        if let Ok(r) = Arc::try_unwrap(r) {
+            self.return_staging(r.staging);
+        }
+        Ok(out)
+    }
+
+    fn finish(&self) -> Result<()> {
+        self.poll(None)
+    }
 }
 
 /// Repeated measurements of a sequence of dispatches, in milliseconds: wall time, GPU time of
@@ -427,17 +786,4 @@ pub fn median(v: &[f64]) -> Option<f64> {
     let mut s = v.to_vec();
     s.sort_by(f64::total_cmp);
     Some(s[s.len() / 2])
-}
-
-fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Storage { read_only },
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    }
 }

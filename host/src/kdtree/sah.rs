@@ -15,6 +15,7 @@
 //! (`MIN_GAP`), so no cell is a rounding error thin: no traversal needs zero-length cells and
 //! each returns the oracle's hits.
 use super::clip::{clipped_bounds, tri_bounds, Bounds};
+use anyhow::{bail, Result};
 use kdray_shared::aabb::Aabb;
 use kdray_shared::kdtree::{KdNode, KdTree, MAX_DEPTH};
 use kdray_shared::Triangle;
@@ -340,10 +341,125 @@ fn merge(a: Vec<Event>, b: Vec<Event>) -> Vec<Event> {
     out
 }
 
+/// What the buffers can address: an interior `KdNode` stores its first child's index << 2 and a
+/// leaf its primitive count << 2 in a u32 (so both must be below 2^30), a leaf's offset into
+/// the primitive index list is a u32, and triangle ids are u32 with `MISS` (u32::MAX) reserved.
+#[derive(Copy, Clone, Debug)]
+struct Limits {
+    /// Most nodes in the tree (every index below it).
+    nodes: u64,
+    /// Most primitives in one leaf.
+    leaf_prims: u64,
+    /// Most entries in the primitive index list.
+    prim_refs: u64,
+    /// Most triangles.
+    triangles: u64,
+}
+
+const FORMAT_LIMITS: Limits =
+    Limits { nodes: 1 << 30, leaf_prims: (1 << 30) - 1, prim_refs: u32::MAX as u64, triangles: u32::MAX as u64 };
+
+/// The sizes of a built tree that the node format must address.
+#[derive(Copy, Clone, Debug, Default)]
+struct TreeCounts {
+    nodes: u64,
+    largest_leaf: u64,
+    prim_refs: u64,
+}
+
+/// `2^k` or `2^k - 1` where it is one, else the number.
+fn limit_str(v: u64) -> String {
+    if v.is_power_of_two() {
+        format!("2^{}", v.trailing_zeros())
+    } else if (v + 1).is_power_of_two() {
+        format!("2^{} - 1", (v + 1).trailing_zeros())
+    } else {
+        v.to_string()
+    }
+}
+
+fn check_triangles(triangles: u64, lim: &Limits) -> Result<()> {
+    if triangles > lim.triangles {
+        bail!(
+            "scene too large for the kd-tree: {triangles} triangles exceed the {} that u32 triangle ids address",
+            limit_str(lim.triangles)
+        );
+    }
+    Ok(())
+}
+
+fn check_counts(c: &TreeCounts, lim: &Limits) -> Result<()> {
+    if c.nodes > lim.nodes {
+        bail!(
+            "scene too large for the kd-tree: {} nodes exceed the {} the 8-byte node format addresses",
+            c.nodes,
+            limit_str(lim.nodes)
+        );
+    }
+    if c.largest_leaf > lim.leaf_prims {
+        bail!(
+            "scene too large for the kd-tree: a leaf of {} triangles exceeds the {} the 8-byte node format counts",
+            c.largest_leaf,
+            limit_str(lim.leaf_prims)
+        );
+    }
+    if c.prim_refs > lim.prim_refs {
+        bail!(
+            "scene too large for the kd-tree: {} triangle references in leaves exceed the {} that u32 leaf offsets address",
+            c.prim_refs,
+            limit_str(lim.prim_refs)
+        );
+    }
+    Ok(())
+}
+
+/// Fails if a tree of `nodes` nodes whose largest leaf holds `largest_leaf` triangles, with
+/// `prim_refs` triangle references in all leaves, over `triangles` triangles, cannot be
+/// stored: more than 2^30 nodes, a leaf of 2^30 or more triangles, 2^32 or more references
+/// or triangles (the 8-byte `KdNode` and the u32 index lists would silently truncate).
+/// `try_build` checks this itself.
+pub fn check_limits(nodes: usize, largest_leaf: usize, prim_refs: usize, triangles: usize) -> Result<()> {
+    check_triangles(triangles as u64, &FORMAT_LIMITS)?;
+    check_counts(
+        &TreeCounts { nodes: nodes as u64, largest_leaf: largest_leaf as u64, prim_refs: prim_refs as u64 },
+        &FORMAT_LIMITS,
+    )
+}
+
+fn count(b: &Built, c: &mut TreeCounts) {
+    c.nodes += 1;
+    match b {
+        Built::Leaf(t) => {
+            c.largest_leaf = c.largest_leaf.max(t.len() as u64);
+            c.prim_refs += t.len() as u64;
+        }
+        Built::Interior { children, .. } => {
+            count(&children[0], c);
+            count(&children[1], c);
+        }
+    }
+}
+
 /// Builds the tree over `tris` (which must be non-empty and finite).
+///
+/// # Panics
+/// If the scene is too large for the node format (see `try_build`), with `try_build`'s message.
 pub fn build(tris: &[Triangle], opt: &BuildOptions) -> KdTreeData {
+    try_build(tris, opt).unwrap_or_else(|e| panic!("{e:#}"))
+}
+
+/// Builds the tree over `tris` (which must be non-empty and finite), or fails with one line
+/// (`scene too large for the kd-tree: …`) if the tree cannot be stored in the 8-byte node
+/// format: more than 2^30 nodes, a leaf of 2^30 or more triangles, 2^32 or more triangle
+/// references in leaves, or 2^32 or more triangles (see `check_limits`).
+pub fn try_build(tris: &[Triangle], opt: &BuildOptions) -> Result<KdTreeData> {
+    build_within(tris, opt, &FORMAT_LIMITS)
+}
+
+fn build_within(tris: &[Triangle], opt: &BuildOptions, limits: &Limits) -> Result<KdTreeData> {
     let start = Instant::now();
     let n = tris.len();
+    check_triangles(n as u64, limits)?;
     let default_depth = (8.0 + 1.3 * (n.max(1) as f64).log2()).round() as u32;
     let depth_limit = opt.max_depth.unwrap_or(default_depth).min(MAX_DEPTH as u32 - 1);
     let mut bounds = Vec::with_capacity(n);
@@ -364,6 +480,9 @@ pub fn build(tris: &[Triangle], opt: &BuildOptions) -> KdTreeData {
     let magnitude = scene.0.iter().chain(&scene.1).fold(0.0f32, |m, x| m.max(x.abs()));
     let ctx = Ctx { tris, opt, depth_limit, min_gap: magnitude * MIN_GAP };
     let root = ctx.build(Work { tris: (0..n as u32).collect(), bounds, events, cell: scene, depth: 0 });
+    let mut counts = TreeCounts::default();
+    count(&root, &mut counts);
+    check_counts(&counts, limits)?;
 
     let mut nodes = vec![KdNode::default()];
     let mut prims = Vec::new();
@@ -374,7 +493,8 @@ pub fn build(tris: &[Triangle], opt: &BuildOptions) -> KdTreeData {
     st.avg_leaf_size = prims.len() as f64 / (st.leaves - st.empty_leaves).max(1) as f64;
     st.bytes = nodes.len() * std::mem::size_of::<KdNode>() + prims.len() * 4;
     st.build_seconds = start.elapsed().as_secs_f64();
-    KdTreeData { nodes, prims, bounds: Aabb { min: scene.0, max: scene.1 }, stats: st }
+    debug_assert_eq!((nodes.len() as u64, prims.len() as u64), (counts.nodes, counts.prim_refs));
+    Ok(KdTreeData { nodes, prims, bounds: Aabb { min: scene.0, max: scene.1 }, stats: st })
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -431,5 +551,58 @@ mod tests {
             seen[*p as usize] = true;
         }
         assert!(seen.iter().all(|x| *x));
+    }
+
+    /// The limits are exactly what the node format holds: the largest child index, leaf count
+    /// and offset within them survive packing.
+    #[test]
+    fn format_limits_match_the_node_packing() {
+        let last_node = (FORMAT_LIMITS.nodes - 1) as u32;
+        let max_first_child = last_node - 1;
+        assert_eq!(KdNode::interior(2, 1.5, max_first_child).first_child(), max_first_child);
+        let n = KdNode::leaf(FORMAT_LIMITS.prim_refs as u32, FORMAT_LIMITS.leaf_prims as u32);
+        assert_eq!((n.prim_offset() as u64, n.prim_count() as u64), (FORMAT_LIMITS.prim_refs, FORMAT_LIMITS.leaf_prims));
+        assert!(n.is_leaf());
+        // One more would truncate: the reason for the checks.
+        assert_ne!(KdNode::interior(0, 0.0, 1 << 30).first_child(), 1 << 30);
+        assert_ne!(KdNode::leaf(0, 1 << 30).prim_count(), 1 << 30);
+    }
+
+    #[test]
+    fn check_limits_at_the_boundaries() {
+        let (n, l, r, t) = (1usize << 30, (1usize << 30) - 1, u32::MAX as usize, u32::MAX as usize);
+        check_limits(n, l, r, t).unwrap();
+        let e = check_limits(n + 1, 1, 1, 1).unwrap_err().to_string();
+        assert_eq!(e, format!("scene too large for the kd-tree: {} nodes exceed the 2^30 the 8-byte node format addresses", n + 1));
+        let e = check_limits(1, l + 1, l + 1, l + 1).unwrap_err().to_string();
+        assert!(e.contains("a leaf of 1073741824 triangles exceeds the 2^30 - 1"), "{e}");
+        let e = check_limits(1, 1, r + 1, 1).unwrap_err().to_string();
+        assert!(e.contains("4294967296 triangle references in leaves exceed the 2^32 - 1"), "{e}");
+        let e = check_limits(1, 1, 1, t + 1).unwrap_err().to_string();
+        assert!(e.contains("4294967296 triangles exceed the 2^32 - 1 that u32 triangle ids address"), "{e}");
+    }
+
+    /// A real build checked against small limits fails with the message, never truncating.
+    #[test]
+    fn try_build_reports_a_tree_beyond_the_limits() {
+        let s = crate::scene::cornell::cornell_box();
+        let opt = BuildOptions::default();
+        let ok = try_build(&s.triangles, &opt).unwrap();
+        let nodes = ok.nodes.len() as u64;
+        let fits = Limits { nodes, leaf_prims: 64, prim_refs: ok.prims.len() as u64, triangles: 32 };
+        build_within(&s.triangles, &opt, &fits).unwrap();
+        let e = build_within(&s.triangles, &opt, &Limits { nodes: nodes - 1, ..fits }).unwrap_err().to_string();
+        assert_eq!(
+            e,
+            format!("scene too large for the kd-tree: {nodes} nodes exceed the {} the 8-byte node format addresses", limit_str(nodes - 1))
+        );
+        let e = build_within(&s.triangles, &opt, &Limits { prim_refs: 10, ..fits }).unwrap_err().to_string();
+        assert!(e.contains("triangle references in leaves exceed the 10 "), "{e}");
+        let e = build_within(&s.triangles, &opt, &Limits { triangles: 16, ..fits }).unwrap_err().to_string();
+        assert!(e.contains("32 triangles exceed the 2^4"), "{e}");
+        // One leaf of every triangle (depth 0) against a leaf limit of 7 = 2^3 - 1.
+        let flat = BuildOptions { max_depth: Some(0), ..opt };
+        let e = build_within(&s.triangles, &flat, &Limits { leaf_prims: 7, ..fits }).unwrap_err().to_string();
+        assert_eq!(e, "scene too large for the kd-tree: a leaf of 32 triangles exceeds the 2^3 - 1 the 8-byte node format counts");
     }
 }

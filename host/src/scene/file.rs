@@ -29,7 +29,11 @@
 //! edge2 = [0.0, 0.0, 0.2]
 //! emission = [10.0, 10.0, 10.0]
 //! ```
-use super::{cornell, obj, CameraSpec, PointLight, Scene};
+//!
+//! Every number must be finite; colours (`diffuse`, `emission`, `intensity`) must also be
+//! non-negative, `fov_y` lie strictly between 0 and 180, and a quad light span some area: an
+//! error names the file and the material, light or camera field otherwise.
+use super::{check_color, check_finite, cornell, obj, CameraSpec, PointLight, Scene};
 use anyhow::{anyhow, bail, Context, Result};
 use glam::Vec3;
 use kdray_shared::{Material, MAT_GLASS, MAT_MIRROR};
@@ -89,11 +93,7 @@ struct SceneFile {
 }
 
 fn finite(name: &str, what: &str, v: [f32; 3]) -> Result<Vec3> {
-    if v.iter().all(|x| x.is_finite()) {
-        Ok(Vec3::from(v))
-    } else {
-        bail!("{name}: {what} is not finite: {v:?}")
-    }
+    check_finite(name, what, v)
 }
 
 pub fn load_scene_file(path: &Path) -> Result<Scene> {
@@ -115,12 +115,9 @@ pub fn load_scene_file(path: &Path) -> Result<Scene> {
     for (mname, m) in &file.materials {
         let flags = if m.mirror.unwrap_or(false) { MAT_MIRROR } else { 0 }
             | if m.glass.unwrap_or(false) { MAT_GLASS } else { 0 };
-        let diffuse = finite(&name, &format!("material '{mname}' diffuse"), m.diffuse)?;
-        let emission = finite(&name, &format!("material '{mname}' emission"), m.emission.unwrap_or([0.0; 3]))?;
-        scene.add_material(
-            mname,
-            Material { diffuse: diffuse.to_array(), flags, emission: emission.to_array(), _pad: 0 },
-        );
+        let diffuse = check_color(&name, &format!("material '{mname}' diffuse"), m.diffuse)?;
+        let emission = check_color(&name, &format!("material '{mname}' emission"), m.emission.unwrap_or([0.0; 3]))?;
+        scene.add_material(mname, Material { diffuse, flags, emission, _pad: 0 });
     }
     if file.mesh.is_empty() {
         bail!("{name}: no [[mesh]] entries: the scene is empty");
@@ -134,7 +131,7 @@ pub fn load_scene_file(path: &Path) -> Result<Scene> {
             ),
             None => None,
         };
-        let translate = finite(&name, "mesh translate", m.translate.unwrap_or([0.0; 3]))?;
+        let translate = finite(&name, &format!("mesh {} translate", i + 1), m.translate.unwrap_or([0.0; 3]))?;
         let scale = m.scale.unwrap_or(1.0);
         if !scale.is_finite() || scale == 0.0 {
             bail!("{name}: mesh {}: scale must be finite and non-zero", i + 1);
@@ -158,19 +155,32 @@ pub fn load_scene_file(path: &Path) -> Result<Scene> {
         }
     }
     for (i, l) in file.light.iter().enumerate() {
+        let what = |field: &str| format!("light {} {field}", i + 1);
         match (l.point, l.corner) {
             (Some(p), None) => {
-                let position = finite(&name, "light point", p)?;
-                let intensity = finite(&name, "light intensity", l.intensity.unwrap_or([1.0; 3]))?;
+                if l.edge1.is_some() || l.edge2.is_some() || l.emission.is_some() {
+                    bail!("{name}: light {}: a point light takes 'intensity', not 'edge1', 'edge2' or 'emission'", i + 1);
+                }
+                let position = finite(&name, &what("point"), p)?;
+                let intensity = Vec3::from(check_color(&name, &what("intensity"), l.intensity.unwrap_or([1.0; 3]))?);
                 scene.point_lights.push(PointLight { position, intensity });
             }
             (None, Some(c)) => {
-                let c = finite(&name, "light corner", c)?;
+                if l.intensity.is_some() {
+                    bail!("{name}: light {}: a quad light takes 'emission', not 'intensity'", i + 1);
+                }
+                let c = finite(&name, &what("corner"), c)?;
                 let (e1, e2) = match (l.edge1, l.edge2) {
-                    (Some(a), Some(b)) => (finite(&name, "light edge1", a)?, finite(&name, "light edge2", b)?),
+                    (Some(a), Some(b)) => (finite(&name, &what("edge1"), a)?, finite(&name, &what("edge2"), b)?),
                     _ => bail!("{name}: light {}: a quad light needs edge1 and edge2", i + 1),
                 };
-                let emission = l.emission.unwrap_or([1.0; 3]);
+                if e1.as_dvec3().cross(e2.as_dvec3()) == glam::DVec3::ZERO {
+                    bail!("{name}: light {}: edge1 {e1} and edge2 {e2} span no area", i + 1);
+                }
+                if !(c + e1 + e2).is_finite() {
+                    bail!("{name}: light {}: corner + edge1 + edge2 is not finite in f32", i + 1);
+                }
+                let emission = check_color(&name, &what("emission"), l.emission.unwrap_or([1.0; 3]))?;
                 let id = scene.add_material(
                     &format!("light{}", i + 1),
                     Material { diffuse: [0.0; 3], emission, ..Default::default() },
@@ -188,6 +198,7 @@ pub fn load_scene_file(path: &Path) -> Result<Scene> {
                 up: finite(&name, "camera up", c.up.unwrap_or([0.0, 1.0, 0.0]))?,
                 fov_y_deg: c.fov_y.unwrap_or(40.0),
             };
+            scene.camera.check(&name)?;
         }
         None if !file.mesh.iter().any(|m| m.builtin.is_some()) => {
             let (lo, hi) = scene.bounds();

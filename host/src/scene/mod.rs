@@ -137,12 +137,92 @@ impl Scene {
         self.triangles.iter().any(|t| self.materials[t.material as usize].flags & kdray_shared::MAT_MIRROR != 0)
     }
 
-    /// Fails on a scene with nothing to trace.
+    /// Fails on a scene with nothing to trace or with inputs that would make the renderer
+    /// produce NaN or infinity: non-finite or negative material colours, point lights or camera
+    /// values, a degenerate camera, and lights whose power overflows f32. The loaders report
+    /// the same problems earlier, naming the file; this catches scenes built in code.
     pub fn validate(&self) -> Result<()> {
+        let name = &self.name;
         if self.triangles.is_empty() {
-            bail!("{}: the scene has no triangles", self.name);
+            bail!("{name}: the scene has no triangles");
+        }
+        for (m, mname) in self.materials.iter().zip(&self.material_names) {
+            check_color(name, &format!("material '{mname}' diffuse"), m.diffuse)?;
+            check_color(name, &format!("material '{mname}' emission"), m.emission)?;
+        }
+        for (i, p) in self.point_lights.iter().enumerate() {
+            check_finite(name, &format!("point light {} position", i + 1), p.position.to_array())?;
+            check_color(name, &format!("point light {} intensity", i + 1), p.intensity.to_array())?;
+        }
+        self.camera.check(name)?;
+        self.check_light_powers()
+    }
+
+    /// Every light's power as the renderer computes it (f32: emission × area for emissive
+    /// triangles, intensity for point lights) and the lights' total power must be finite.
+    fn check_light_powers(&self) -> Result<()> {
+        let name = &self.name;
+        let mut total = 0.0f64;
+        for (light, weight, source) in self.light_entries() {
+            let power = light.emission.map(|e| e * if light.kind == LIGHT_TRIANGLE { light.area } else { 1.0 });
+            if !(light.area.is_finite() && power.iter().all(|p| p.is_finite()) && weight.is_finite()) {
+                let what = match source {
+                    LightSource::Triangle(i) => {
+                        let t = &self.triangles[i];
+                        format!(
+                            "emissive triangle {} (material '{}') has a non-finite power: area {:e} × emission {:?} overflows f32",
+                            t.face, self.material_names[t.material as usize], light.area, light.emission
+                        )
+                    }
+                    LightSource::Point(i) => {
+                        format!("point light {} has a non-finite power: intensity {:?}", i + 1, light.emission)
+                    }
+                };
+                bail!("{name}: {what}");
+            }
+            total += weight;
+        }
+        if !(total as f32).is_finite() {
+            bail!("{name}: the lights' total power {total:e} (area × luminance) overflows f32");
         }
         Ok(())
+    }
+
+    /// One warning per problem the renderer will not show, without the `warning: ` prefix:
+    /// materials marked glass (`MAT_GLASS`, OBJ `illum` 4/6/7/9, TOML `glass = true`) used by
+    /// some triangle, since dielectrics are not rendered yet. `source` names the scene.
+    pub fn warnings_for(&self, source: &str) -> Vec<String> {
+        let mut used = vec![false; self.materials.len()];
+        for t in &self.triangles {
+            used[t.material as usize] = true;
+        }
+        let glass: Vec<usize> = (0..self.materials.len())
+            .filter(|&i| used[i] && self.materials[i].flags & kdray_shared::MAT_GLASS != 0)
+            .collect();
+        if glass.is_empty() {
+            return Vec::new();
+        }
+        let quoted = |ids: &[usize]| ids.iter().map(|&i| format!("'{}'", self.material_names[i])).collect::<Vec<_>>().join(", ");
+        let (subject, shaded) = if glass.len() == 1 {
+            (format!("material {} is", quoted(&glass)), "it is")
+        } else {
+            (format!("materials {} are", quoted(&glass)), "they are")
+        };
+        let mirrors: Vec<usize> =
+            glass.iter().copied().filter(|&i| self.materials[i].flags & kdray_shared::MAT_MIRROR != 0).collect();
+        let also = if mirrors.is_empty() {
+            String::new()
+        } else {
+            format!(" (except {}, also marked mirror, shaded as a mirror)", quoted(&mirrors))
+        };
+        vec![format!(
+            "{source}: {subject} glass (dielectric); dielectrics are not rendered yet and {shaded} shaded as diffuse{also}"
+        )]
+    }
+
+    /// `warnings_for` the scene's name.
+    pub fn warnings(&self) -> Vec<String> {
+        self.warnings_for(&self.name)
     }
 
     pub fn bounds(&self) -> (Vec3, Vec3) {
@@ -159,18 +239,42 @@ impl Scene {
 
     /// Lights to sample: every emissive triangle (chosen with probability ∝ area · luminance)
     /// and every point light (∝ luminance of intensity), with the running `cdf` filled in.
+    ///
+    /// A light that emits nothing is not a light and is skipped: zero luminance (black: with
+    /// negative components rejected at load time, and the luminance taken in f64, any positive
+    /// component gives a positive luminance), or an emissive triangle so small that its normal
+    /// underflows in f32 (its samples would be NaN). So every light returned has a positive
+    /// weight, and a scene whose lights all emit nothing has none (no shadow rays; the image is
+    /// the same). The weights are computed in f64 from f32 inputs: finite inputs give finite
+    /// weights and a finite, positive total. Should the weights still be unusable (a scene
+    /// built in code with NaN, infinite or negative emission, which `validate` rejects, or a
+    /// total of 0), the lights are chosen uniformly instead, so the `cdf` is never NaN.
+    /// (A light's f32 `area` or power may still overflow for finite but huge inputs;
+    /// `validate` rejects those.)
     pub fn lights(&self) -> Vec<Light> {
-        let lum = |c: [f32; 3]| 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
-        let mut lights = Vec::new();
-        let mut weights = Vec::new();
-        for t in &self.triangles {
+        let entries = self.light_entries();
+        let weights: Vec<f64> = entries.iter().map(|e| e.1).collect();
+        let mut lights: Vec<Light> = entries.into_iter().map(|e| e.0).collect();
+        fill_cdf(&mut lights, &weights);
+        lights
+    }
+
+    /// The lights with their selection weights (area · luminance, or luminance) and where each
+    /// comes from; `cdf` is left at 0.
+    fn light_entries(&self) -> Vec<(Light, f64, LightSource)> {
+        let mut out = Vec::new();
+        for (i, t) in self.triangles.iter().enumerate() {
             let e = self.materials[t.material as usize].emission;
-            if lum(e) <= 0.0 {
+            let lum = luminance(e);
+            let (v0, v1, v2) = (Vec3::from(t.v0), Vec3::from(t.v1), Vec3::from(t.v2));
+            let cross = (v1 - v0).cross(v2 - v0);
+            if lum == 0.0 || cross.length_squared() == 0.0 {
                 continue;
             }
-            let (v0, v1, v2) = (Vec3::from(t.v0), Vec3::from(t.v1), Vec3::from(t.v2));
-            let area = 0.5 * (v1 - v0).cross(v2 - v0).length();
-            lights.push(Light {
+            let area = 0.5 * cross.length();
+            let (d0, d1, d2) = (v0.as_dvec3(), v1.as_dvec3(), v2.as_dvec3());
+            let area64 = 0.5 * (d1 - d0).cross(d2 - d0).length();
+            let light = Light {
                 p0: t.v0,
                 kind: LIGHT_TRIANGLE,
                 e1: (v1 - v0).to_array(),
@@ -179,28 +283,110 @@ impl Scene {
                 area,
                 emission: e,
                 _pad: 0,
-            });
-            weights.push(area as f64 * lum(e) as f64);
+            };
+            out.push((light, weight(area, area64, e), LightSource::Triangle(i)));
         }
-        for p in &self.point_lights {
-            lights.push(Light {
+        for (i, p) in self.point_lights.iter().enumerate() {
+            let lum = luminance(p.intensity.to_array());
+            if lum == 0.0 {
+                continue;
+            }
+            let light = Light {
                 p0: p.position.to_array(),
                 kind: LIGHT_POINT,
                 emission: p.intensity.to_array(),
                 ..Default::default()
-            });
-            weights.push(lum(p.intensity.to_array()) as f64);
+            };
+            out.push((light, weight(1.0, 1.0, p.intensity.to_array()), LightSource::Point(i)));
         }
-        let total: f64 = weights.iter().sum();
-        let mut acc = 0.0;
-        for (l, w) in lights.iter_mut().zip(&weights) {
+        out
+    }
+}
+
+/// Where a light of `Scene::light_entries` comes from (an index into `triangles` or
+/// `point_lights`), for error messages.
+#[derive(Copy, Clone, Debug)]
+enum LightSource {
+    Triangle(usize),
+    Point(usize),
+}
+
+/// A light's selection weight, area · luminance: computed in f32 as the renderer always has
+/// (the same weights, so the same light samples and images as before), and in f64 only where
+/// the f32 product is not positive and finite (tiny or huge lights).
+fn weight(area: f32, area64: f64, c: [f32; 3]) -> f64 {
+    let lum32 = 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
+    let w = area as f64 * lum32 as f64;
+    if w > 0.0 && w.is_finite() {
+        w
+    } else {
+        area64 * luminance(c)
+    }
+}
+
+/// Rec. 709 luminance, in f64 so that no positive component rounds away.
+fn luminance(c: [f32; 3]) -> f64 {
+    0.2126 * c[0] as f64 + 0.7152 * c[1] as f64 + 0.0722 * c[2] as f64
+}
+
+/// Fills the running `cdf` of `lights` from their `weights`: proportional when every weight is
+/// finite and non-negative and the total is positive and finite, uniform otherwise; the last
+/// light's is 1.
+pub(crate) fn fill_cdf(lights: &mut [Light], weights: &[f64]) {
+    let n = lights.len();
+    let total: f64 = weights.iter().sum();
+    let proportional = total > 0.0 && total.is_finite() && weights.iter().all(|w| w.is_finite() && *w >= 0.0);
+    let mut acc = 0.0;
+    for (i, (l, w)) in lights.iter_mut().zip(weights).enumerate() {
+        l.cdf = if proportional {
             acc += w;
-            l.cdf = (acc / total) as f32;
+            (acc / total) as f32
+        } else {
+            ((i + 1) as f64 / n as f64) as f32
+        };
+    }
+    if let Some(last) = lights.last_mut() {
+        last.cdf = 1.0;
+    }
+}
+
+/// `v` must be finite: an error naming `what` of `name` otherwise.
+pub(crate) fn check_finite(name: &str, what: &str, v: [f32; 3]) -> Result<Vec3> {
+    if !v.iter().all(|x| x.is_finite()) {
+        bail!("{name}: {what} is not finite: {v:?}");
+    }
+    Ok(Vec3::from(v))
+}
+
+/// A colour (reflectance, emission, intensity) must be finite and non-negative.
+pub(crate) fn check_color(name: &str, what: &str, v: [f32; 3]) -> Result<[f32; 3]> {
+    check_finite(name, what, v)?;
+    if v.iter().any(|x| *x < 0.0) {
+        bail!("{name}: {what} is negative: {v:?}");
+    }
+    Ok(v)
+}
+
+impl CameraSpec {
+    /// Finite eye, look_at and up, a field of view strictly between 0 and 180 degrees, and a
+    /// view direction that exists and is not parallel to `up` (else every ray is NaN).
+    pub fn check(&self, name: &str) -> Result<()> {
+        check_finite(name, "camera eye", self.eye.to_array())?;
+        check_finite(name, "camera look_at", self.look_at.to_array())?;
+        check_finite(name, "camera up", self.up.to_array())?;
+        let fov = self.fov_y_deg;
+        if !(fov > 0.0 && fov < 180.0) {
+            bail!("{name}: camera fov_y must be between 0 and 180 degrees (exclusive), got {fov}");
         }
-        if let Some(last) = lights.last_mut() {
-            last.cdf = 1.0;
+        let forward = (self.look_at - self.eye).normalize_or_zero();
+        if forward == Vec3::ZERO || !forward.is_finite() {
+            bail!("{name}: camera eye and look_at must be distinct points, got {} and {}", self.eye, self.look_at);
         }
-        lights
+        let right = forward.cross(self.up).normalize_or_zero();
+        if right == Vec3::ZERO || !right.is_finite() {
+            bail!("{name}: camera up {} is zero or parallel to the view direction {}", self.up, forward);
+        }
+        Ok(())
     }
 }
 
@@ -222,5 +408,8 @@ pub fn load(spec: &str) -> Result<Scene> {
         s => bail!("unknown scene '{s}': use cornell, cornell-mirror, cornell-mirrors, cornell-chair, chairs:K, conference, a .obj file or a .toml scene file"),
     };
     scene.validate()?;
+    for w in scene.warnings_for(spec) {
+        eprintln!("warning: {w}");
+    }
     Ok(scene)
 }

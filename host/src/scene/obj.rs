@@ -59,18 +59,77 @@ pub fn validate_obj_text(name: &str, text: &str) -> Result<()> {
     Ok(())
 }
 
-fn material_from_mtl(m: &tobj::Material) -> Material {
-    let diffuse = m.diffuse.unwrap_or([0.8, 0.8, 0.8]);
-    let emission = m
-        .emissive
-        .filter(|e| e.iter().all(|x| x.is_finite() && *x >= 0.0))
-        .unwrap_or([0.0; 3]);
+/// Checks what tobj does not, by line, in an MTL file: the colour statements (`Ka`, `Kd`,
+/// `Ks`, `Ke`) have three numbers (tobj panics on fewer), and `Kd` and `Ke` (the ones used) are
+/// finite and non-negative. Numbers that do not parse are left to tobj, whose failure to load
+/// the materials is a warning.
+pub fn validate_mtl_text(name: &str, text: &str) -> Result<()> {
+    let mut material = String::new();
+    for (i, raw) in text.lines().enumerate() {
+        let line_no = i + 1;
+        let line = raw.trim();
+        let mut it = line.split_whitespace();
+        let key = it.next();
+        match key {
+            Some("newmtl") => material = line["newmtl".len()..].trim().to_string(),
+            Some(k @ ("Ka" | "Kd" | "Ks" | "Ke")) => {
+                let nums: Vec<&str> = it.take(3).collect();
+                let what = if material.is_empty() { k.to_string() } else { format!("material '{material}' {k}") };
+                if nums.len() < 3 {
+                    bail!("{name}:{line_no}: {what} needs 3 numbers (r g b): '{line}'");
+                }
+                if k == "Ka" || k == "Ks" {
+                    continue;
+                }
+                for n in nums {
+                    let Ok(x) = n.parse::<f32>() else { continue };
+                    if !x.is_finite() {
+                        bail!("{name}:{line_no}: {what} has a non-finite value '{n}'");
+                    }
+                    if x < 0.0 {
+                        bail!("{name}:{line_no}: {what} has a negative value '{n}'");
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    Ok(())
+}
+
+/// Validates the MTL files an OBJ file names (`mtllib`, resolved as tobj does: relative to
+/// the OBJ file's directory). Files that cannot be read are left to tobj (a warning).
+fn validate_mtllibs(path: &Path, text: &str) -> Result<()> {
+    for raw in text.lines() {
+        let line = raw.trim();
+        if line.split_whitespace().next() != Some("mtllib") {
+            continue;
+        }
+        let file = line.split_once(' ').unwrap_or_default().1.trim();
+        let mtl = match path.parent() {
+            Some(dir) => dir.join(file),
+            None => Path::new(file).to_path_buf(),
+        };
+        if let Ok(mtl_text) = std::fs::read_to_string(&mtl) {
+            validate_mtl_text(&mtl.display().to_string(), &mtl_text)?;
+        }
+    }
+    Ok(())
+}
+
+/// A material from an MTL entry; `name` (the OBJ file) is for errors that `validate_mtl_text`
+/// should already have caught.
+fn material_from_mtl(name: &str, m: &tobj::Material) -> Result<Material> {
+    let what = |k: &str| format!("material '{}' {k}", m.name);
+    let diffuse = super::check_color(name, &what("Kd"), m.diffuse.unwrap_or([0.8, 0.8, 0.8]))?;
+    let emission = super::check_color(name, &what("Ke"), m.emissive.unwrap_or([0.0; 3]))?;
     let flags = match m.illumination_model {
         Some(3) | Some(5) => MAT_MIRROR,
+        // Glass: kept, but shaded as diffuse until dielectrics exist (`Scene::warnings`).
         Some(4) | Some(6) | Some(7) | Some(9) => MAT_GLASS,
         _ => 0,
     };
-    Material { diffuse, flags, emission, _pad: 0 }
+    Ok(Material { diffuse, flags, emission, _pad: 0 })
 }
 
 /// Adds the meshes of an OBJ file to `scene`, transformed by `scale` then `translate`.
@@ -85,6 +144,7 @@ pub fn add_obj(
     let name = path.display().to_string();
     let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {name}"))?;
     validate_obj_text(&name, &text)?;
+    validate_mtllibs(path, &text)?;
     let opts = tobj::LoadOptions { triangulate: true, single_index: true, ..Default::default() };
     let (models, mtls) = tobj::load_obj(path, &opts).map_err(|e| anyhow!("{name}: {e}"))?;
     // A missing or broken .mtl is not fatal: faces fall back to the default material.
@@ -93,10 +153,11 @@ pub fn add_obj(
         Vec::new()
     });
     let default = scene.add_material("default", Material { diffuse: [0.8; 3], ..Default::default() });
-    let mtl_ids: Vec<u32> = mtls
-        .iter()
-        .map(|m| scene.add_material(&m.name, material_from_mtl(m)))
-        .collect();
+    let mut mtl_ids = Vec::with_capacity(mtls.len());
+    for m in &mtls {
+        let mat = material_from_mtl(&name, m)?;
+        mtl_ids.push(scene.add_material(&m.name, mat));
+    }
     let mut face_no = 0usize;
     for model in &models {
         let mesh = &model.mesh;

@@ -11,10 +11,11 @@
 //! query within it the ray must be traced again by a monolithic kernel (never dropped).
 //! The list is built locally and copied out by the caller (a storage-buffer slice held in the
 //! visitor made NVIDIA's SPIR-V compiler crash, driver 580).
-use super::query::{Query, Visitor};
 use super::single::traverse;
 use super::stack::FullStack;
-use super::{KdNode, KdTree, Stats};
+use super::{KdNode, KdTree};
+use crate::query::{Prims, Query, Visitor};
+use crate::stats::Stats;
 use crate::ray::Ray;
 use crate::triangle::ShearedRay;
 use bytemuck::{Pod, Zeroable};
@@ -70,12 +71,12 @@ impl LeafList {
 
 impl Visitor for LeafList {
     #[inline(always)]
-    fn leaf<S: Stats>(&mut self, _tree: &KdTree, node: KdNode, _r: &ShearedRay, _t_min: f32, t_far: f32, _stats: &mut S) {
-        if node.prim_count() == 0 {
+    fn leaf<S: Stats>(&mut self, _g: &Prims, first: u32, count: u32, _r: &ShearedRay, _t_min: f32, t_far: f32, _stats: &mut S) {
+        if count == 0 {
             self.pending.t_far = t_far;
         } else {
             self.flush();
-            self.pending = LeafRef { node, t_far };
+            self.pending = LeafRef { node: KdNode::leaf(first, count), t_far };
             self.has_pending = true;
         }
     }
@@ -119,12 +120,13 @@ pub fn intersect_leaves<Q: Query, S: Stats>(
         Some(r) => r,
         None => return true,
     };
+    let g = tree.prims();
     let len = (status & !LEAF_OVERFLOW) as usize;
     let mut k = 0;
     while k < len {
         let e = list[base + k];
         stats.leaf();
-        q.leaf(tree, e.node, &r, ray.t_min, e.t_far, stats);
+        q.leaf(&g, e.node.prim_offset(), e.node.prim_count(), &r, ray.t_min, e.t_far, stats);
         if q.done(e.t_far) {
             return true;
         }

@@ -26,21 +26,21 @@
 //!
 //! Modules: `single` (the one-ray traversal above), `packet` (four rays at once with lane
 //! masks, the same decisions per lane), `leaf_list` (the decomposed pipeline's leaf lists),
-//! `query` (closest / any hit at a leaf), `stack` (no stack, short stack, full stack).
+//! `stack` (no stack, short stack, full stack). What happens at a leaf (closest / any hit,
+//! leaf recording) is the crate-level `query` module, shared with every structure.
 mod leaf_list;
 mod packet;
-mod query;
 mod single;
 mod stack;
 
 pub use leaf_list::{intersect_leaves, record_leaves, LeafList, LeafRef, LEAF_OVERFLOW, MAX_LEAF_LIST};
-pub use packet::{direction_signs, packet_or_single, run_packet, traverse_packet, PacketEntry, PACKET};
-pub use query::{AnyHit, Closest, Query, Visitor};
-pub use single::{any_hit, closest_hit, run, traverse, Algorithm, MAX_SHORT_STACK};
+pub use packet::{direction_signs, packet_or_single, run_packet, traverse_packet, PacketEntry, PacketTraversal, PACKET};
+pub use single::{any_hit, closest_hit, run, traverse, Algorithm, with_traversal, Full, PushDown, Restart, Short, Traversal, WithTraversal, MAX_SHORT_STACK};
 pub use stack::{Entry, FullStack, NoStack, ShortStack, Stack};
 
 use crate::aabb::Aabb;
 use crate::pod::Triangle;
+use crate::query::Prims;
 use bytemuck::{Pod, Zeroable};
 
 /// Deepest tree the builder produces; also the capacity of `FullStack`.
@@ -99,52 +99,11 @@ pub struct KdTree<'a> {
     pub bounds: Aabb,
 }
 
-/// Traversal cost counters; `NoStats` compiles to nothing.
-pub trait Stats {
-    fn node(&mut self);
-    fn leaf(&mut self);
-    fn tri(&mut self);
-    fn restart(&mut self);
-}
 
-pub struct NoStats;
-impl Stats for NoStats {
+impl<'a> KdTree<'a> {
+    /// The primitive index list and triangles its leaves refer to.
     #[inline(always)]
-    fn node(&mut self) {}
-    #[inline(always)]
-    fn leaf(&mut self) {}
-    #[inline(always)]
-    fn tri(&mut self) {}
-    #[inline(always)]
-    fn restart(&mut self) {}
-}
-
-/// Per-ray counts: nodes visited (interior and leaf), leaves visited, triangles tested,
-/// restarts. Also the GPU buffer layout of the counting kernels.
-#[repr(C)]
-#[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
-pub struct Counters {
-    pub nodes: u32,
-    pub leaves: u32,
-    pub tris: u32,
-    pub restarts: u32,
-}
-impl Stats for Counters {
-    #[inline(always)]
-    fn node(&mut self) {
-        self.nodes += 1;
-    }
-    #[inline(always)]
-    fn leaf(&mut self) {
-        self.leaves += 1;
-    }
-    #[inline(always)]
-    fn tri(&mut self) {
-        self.tris += 1;
-    }
-    #[inline(always)]
-    fn restart(&mut self) {
-        self.restarts += 1;
+    pub fn prims(&self) -> Prims<'a> {
+        Prims { index: self.prims, tris: self.tris }
     }
 }
-

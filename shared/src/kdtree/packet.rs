@@ -18,10 +18,11 @@
 //! visited (push-down: from the deepest node entered since the last restart with no split).
 //! Each lane therefore visits the same leaves in the same order as it would alone and its
 //! result is identical to the single-ray result.
-use super::query::Query;
-use super::single::{traverse, Algorithm};
+use super::single::{traverse, with_traversal, Algorithm, Full, PushDown, Restart, Short, Traversal, WithTraversal};
 use super::stack::{Entry, NoStack, ShortStack, Stack};
-use super::{KdTree, Stats, MAX_DEPTH};
+use super::{KdTree, MAX_DEPTH};
+use crate::query::Query;
+use crate::stats::Stats;
 use crate::aabb::{intersect_box, inv_dir};
 use crate::ray::Ray;
 use crate::triangle::ShearedRay;
@@ -270,19 +271,44 @@ where
 /// 8 as in `single::run`.
 #[inline(always)]
 pub fn run_packet<Q: Query, S: Stats>(alg: Algorithm, tree: &KdTree, rays: &[Ray; PACKET], q: &mut [Q; PACKET], stats: &mut S) -> bool {
-    type P<const N: usize> = ShortStack<PacketEntry, N>;
-    type R<const N: usize> = ShortStack<Entry, N>;
-    match alg {
-        Algorithm::Stack => packet_or_single::<_, P<MAX_DEPTH>, R<MAX_DEPTH>, _, false>(tree, rays, q, stats),
-        Algorithm::Restart => packet_or_single::<_, NoStack, NoStack, _, false>(tree, rays, q, stats),
-        Algorithm::PushDown => packet_or_single::<_, NoStack, NoStack, _, true>(tree, rays, q, stats),
-        Algorithm::ShortStack(1) => packet_or_single::<_, P<1>, R<1>, _, true>(tree, rays, q, stats),
-        Algorithm::ShortStack(2) => packet_or_single::<_, P<2>, R<2>, _, true>(tree, rays, q, stats),
-        Algorithm::ShortStack(3) => packet_or_single::<_, P<3>, R<3>, _, true>(tree, rays, q, stats),
-        Algorithm::ShortStack(4) => packet_or_single::<_, P<4>, R<4>, _, true>(tree, rays, q, stats),
-        Algorithm::ShortStack(5) => packet_or_single::<_, P<5>, R<5>, _, true>(tree, rays, q, stats),
-        Algorithm::ShortStack(6) => packet_or_single::<_, P<6>, R<6>, _, true>(tree, rays, q, stats),
-        Algorithm::ShortStack(7) => packet_or_single::<_, P<7>, R<7>, _, true>(tree, rays, q, stats),
-        Algorithm::ShortStack(_) => packet_or_single::<_, P<8>, R<8>, _, true>(tree, rays, q, stats),
+    struct Run<'a, 'b, Q, S>(&'a KdTree<'b>, &'a [Ray; PACKET], &'a mut [Q; PACKET], &'a mut S);
+    impl<Q: Query, S: Stats> WithTraversal for Run<'_, '_, Q, S> {
+        type Out = bool;
+        #[inline(always)]
+        fn call<T: Traversal + PacketTraversal>(self) -> bool {
+            T::run_packet(self.0, self.1, self.2, self.3)
+        }
+    }
+    with_traversal(alg, Run(tree, rays, q, stats))
+}
+
+/// The packet form of a traversal type (`single::Traversal`): Horn et al.'s packet variant
+/// with the same stack kind and push-down rule, falling back to single rays for incoherent
+/// packets.
+pub trait PacketTraversal {
+    fn run_packet<Q: Query, S: Stats>(tree: &KdTree, rays: &[Ray; PACKET], q: &mut [Q; PACKET], stats: &mut S) -> bool;
+}
+impl PacketTraversal for Full {
+    #[inline(always)]
+    fn run_packet<Q: Query, S: Stats>(tree: &KdTree, rays: &[Ray; PACKET], q: &mut [Q; PACKET], stats: &mut S) -> bool {
+        packet_or_single::<_, ShortStack<PacketEntry, MAX_DEPTH>, ShortStack<Entry, MAX_DEPTH>, _, false>(tree, rays, q, stats)
+    }
+}
+impl PacketTraversal for Restart {
+    #[inline(always)]
+    fn run_packet<Q: Query, S: Stats>(tree: &KdTree, rays: &[Ray; PACKET], q: &mut [Q; PACKET], stats: &mut S) -> bool {
+        packet_or_single::<_, NoStack, NoStack, _, false>(tree, rays, q, stats)
+    }
+}
+impl PacketTraversal for PushDown {
+    #[inline(always)]
+    fn run_packet<Q: Query, S: Stats>(tree: &KdTree, rays: &[Ray; PACKET], q: &mut [Q; PACKET], stats: &mut S) -> bool {
+        packet_or_single::<_, NoStack, NoStack, _, true>(tree, rays, q, stats)
+    }
+}
+impl<const N: usize> PacketTraversal for Short<N> {
+    #[inline(always)]
+    fn run_packet<Q: Query, S: Stats>(tree: &KdTree, rays: &[Ray; PACKET], q: &mut [Q; PACKET], stats: &mut S) -> bool {
+        packet_or_single::<_, ShortStack<PacketEntry, N>, ShortStack<Entry, N>, _, true>(tree, rays, q, stats)
     }
 }

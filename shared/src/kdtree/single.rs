@@ -1,17 +1,19 @@
 //! The single-ray traversal family, one generic function: the stack kind (`NoStack`,
 //! `ShortStack<N>`, `FullStack`) and `PUSHDOWN` select kd-restart, push-down, short-stack or the
 //! classic full stack (see the module table in `kdtree`).
-use super::query::{AnyHit, Closest, Query, Visitor};
-use super::stack::{Entry, FullStack, NoStack, ShortStack, Stack};
-use super::{KdTree, Stats, MAX_DEPTH};
+use super::stack::{Entry, FullStack, NoStack, ShortStack, Stack as StackKind};
+use super::{KdTree, MAX_DEPTH};
+use crate::query::{AnyHit, Closest, Query, Visitor};
+use crate::stats::Stats;
 use crate::aabb::{intersect_box, inv_dir};
 use crate::pod::Hit;
 use crate::ray::Ray;
 use crate::triangle::ShearedRay;
+use super::packet::PacketTraversal;
 
 /// Walks the tree for `q`. `PUSHDOWN` selects Horn's push-down restart node.
 #[inline(always)]
-pub fn traverse<Q: Visitor, K: Stack<Entry>, S: Stats, const PUSHDOWN: bool>(
+pub fn traverse<Q: Visitor, K: StackKind<Entry>, S: Stats, const PUSHDOWN: bool>(
     tree: &KdTree,
     ray: &Ray,
     q: &mut Q,
@@ -28,6 +30,7 @@ pub fn traverse<Q: Visitor, K: Stack<Entry>, S: Stats, const PUSHDOWN: bool>(
         Some(i) => i,
         None => return,
     };
+    let prims = tree.prims();
     let n_nodes = tree.nodes.len() as u32;
     // Hang guard: a valid ray visits far fewer nodes than this.
     let max_steps = n_nodes.min(1 << 24) * MAX_DEPTH as u32 + 64;
@@ -81,7 +84,7 @@ pub fn traverse<Q: Visitor, K: Stack<Entry>, S: Stats, const PUSHDOWN: bool>(
             continue;
         }
         stats.leaf();
-        q.leaf(tree, node, &r, ray.t_min, t1, stats);
+        q.leaf(&prims, node.prim_offset(), node.prim_count(), &r, ray.t_min, t1, stats);
         if q.done(t1) {
             return;
         }
@@ -120,18 +123,40 @@ pub const MAX_SHORT_STACK: u32 = 8;
 /// Runs `alg` for query `q` (short-stack sizes outside 1..=8 fall back to 8).
 #[inline(always)]
 pub fn run<Q: Visitor, S: Stats>(alg: Algorithm, tree: &KdTree, ray: &Ray, q: &mut Q, stats: &mut S) {
+    struct Run<'a, 'b, Q, S>(&'a KdTree<'b>, &'a Ray, &'a mut Q, &'a mut S);
+    impl<Q: Visitor, S: Stats> WithTraversal for Run<'_, '_, Q, S> {
+        type Out = ();
+        #[inline(always)]
+        fn call<T: Traversal + PacketTraversal>(self) {
+            T::run(self.0, self.1, self.2, self.3)
+        }
+    }
+    with_traversal(alg, Run(tree, ray, q, stats))
+}
+
+/// Something to do with the traversal type that `alg` names: the one place where an
+/// `Algorithm` value becomes a type (the runtimes pick their kernels through it).
+pub trait WithTraversal {
+    type Out;
+    fn call<T: Traversal + PacketTraversal>(self) -> Self::Out;
+}
+
+/// Calls `w` with the traversal type of `alg` (short stacks of 1..=8 entries; larger sizes
+/// fall back to 8).
+#[inline(always)]
+pub fn with_traversal<W: WithTraversal>(alg: Algorithm, w: W) -> W::Out {
     match alg {
-        Algorithm::Stack => traverse::<_, _, _, false>(tree, ray, q, &mut FullStack::new(), stats),
-        Algorithm::Restart => traverse::<_, _, _, false>(tree, ray, q, &mut NoStack::new(), stats),
-        Algorithm::PushDown => traverse::<_, _, _, true>(tree, ray, q, &mut NoStack::new(), stats),
-        Algorithm::ShortStack(1) => traverse::<_, _, _, true>(tree, ray, q, &mut ShortStack::<Entry, 1>::new(), stats),
-        Algorithm::ShortStack(2) => traverse::<_, _, _, true>(tree, ray, q, &mut ShortStack::<Entry, 2>::new(), stats),
-        Algorithm::ShortStack(3) => traverse::<_, _, _, true>(tree, ray, q, &mut ShortStack::<Entry, 3>::new(), stats),
-        Algorithm::ShortStack(4) => traverse::<_, _, _, true>(tree, ray, q, &mut ShortStack::<Entry, 4>::new(), stats),
-        Algorithm::ShortStack(5) => traverse::<_, _, _, true>(tree, ray, q, &mut ShortStack::<Entry, 5>::new(), stats),
-        Algorithm::ShortStack(6) => traverse::<_, _, _, true>(tree, ray, q, &mut ShortStack::<Entry, 6>::new(), stats),
-        Algorithm::ShortStack(7) => traverse::<_, _, _, true>(tree, ray, q, &mut ShortStack::<Entry, 7>::new(), stats),
-        Algorithm::ShortStack(_) => traverse::<_, _, _, true>(tree, ray, q, &mut ShortStack::<Entry, 8>::new(), stats),
+        Algorithm::Stack => w.call::<Full>(),
+        Algorithm::Restart => w.call::<Restart>(),
+        Algorithm::PushDown => w.call::<PushDown>(),
+        Algorithm::ShortStack(1) => w.call::<Short<1>>(),
+        Algorithm::ShortStack(2) => w.call::<Short<2>>(),
+        Algorithm::ShortStack(3) => w.call::<Short<3>>(),
+        Algorithm::ShortStack(4) => w.call::<Short<4>>(),
+        Algorithm::ShortStack(5) => w.call::<Short<5>>(),
+        Algorithm::ShortStack(6) => w.call::<Short<6>>(),
+        Algorithm::ShortStack(7) => w.call::<Short<7>>(),
+        Algorithm::ShortStack(_) => w.call::<Short<8>>(),
     }
 }
 
@@ -147,4 +172,43 @@ pub fn any_hit<S: Stats>(alg: Algorithm, tree: &KdTree, ray: &Ray, stats: &mut S
     let mut q = AnyHit::new(ray);
     run(alg, tree, ray, &mut q, stats);
     q.found
+}
+
+/// A single-ray traversal as a type, so that kernels are generic over it (one kernel per
+/// traversal without a copy of the kernel).
+pub trait Traversal {
+    fn run<V: Visitor, S: Stats>(tree: &KdTree, ray: &Ray, v: &mut V, stats: &mut S);
+}
+/// The classic full stack.
+pub struct Full;
+/// kd-restart (Foley & Sugerman 2005).
+pub struct Restart;
+/// kd-restart + push-down (Horn et al. 2007).
+pub struct PushDown;
+/// Push-down + a short stack of `N` entries (Horn et al. 2007).
+pub struct Short<const N: usize>;
+
+impl Traversal for Full {
+    #[inline(always)]
+    fn run<V: Visitor, S: Stats>(tree: &KdTree, ray: &Ray, v: &mut V, stats: &mut S) {
+        traverse::<_, _, _, false>(tree, ray, v, &mut FullStack::new(), stats)
+    }
+}
+impl Traversal for Restart {
+    #[inline(always)]
+    fn run<V: Visitor, S: Stats>(tree: &KdTree, ray: &Ray, v: &mut V, stats: &mut S) {
+        traverse::<_, _, _, false>(tree, ray, v, &mut NoStack::new(), stats)
+    }
+}
+impl Traversal for PushDown {
+    #[inline(always)]
+    fn run<V: Visitor, S: Stats>(tree: &KdTree, ray: &Ray, v: &mut V, stats: &mut S) {
+        traverse::<_, _, _, true>(tree, ray, v, &mut NoStack::new(), stats)
+    }
+}
+impl<const N: usize> Traversal for Short<N> {
+    #[inline(always)]
+    fn run<V: Visitor, S: Stats>(tree: &KdTree, ray: &Ray, v: &mut V, stats: &mut S) {
+        traverse::<_, _, _, true>(tree, ray, v, &mut ShortStack::<Entry, N>::new(), stats)
+    }
 }

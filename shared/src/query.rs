@@ -1,15 +1,27 @@
-//! What a traversal does at a leaf. `Visitor` is what the traversal calls; every `Query`
-//! (closest hit, any hit) is a visitor that tests the leaf's triangles one by one, and the
-//! decomposed pipeline's leaf recorder (`leaf_list`) is a visitor that tests nothing.
-use super::{KdNode, KdTree, Stats};
+//! What a traversal does at a leaf, for every acceleration structure (kd-tree, brute force,
+//! and any structure that ends in leaves holding a range of a primitive index list).
+//! `Visitor` is what a traversal calls; every `Query` (closest hit, any hit) is a visitor that
+//! tests the leaf's triangles one by one, and the decomposed pipeline's leaf recorder
+//! (`kdtree::leaf_list`) is a visitor that tests nothing.
 use crate::pod::{Hit, Triangle};
 use crate::ray::Ray;
+use crate::stats::Stats;
 use crate::triangle::{intersect_triangle, ShearedRay};
+
+/// What leaves refer to: a primitive index list (a leaf holds `prims[first..first + count]`)
+/// and the triangles those indices name.
+#[derive(Copy, Clone)]
+pub struct Prims<'a> {
+    pub index: &'a [u32],
+    pub tris: &'a [Triangle],
+}
 
 /// Called by the traversals for each leaf whose cell the ray's interval overlaps.
 pub trait Visitor {
-    /// The leaf `node` covers the ray's interval up to `t_far`.
-    fn leaf<S: Stats>(&mut self, tree: &KdTree, node: KdNode, r: &ShearedRay, t_min: f32, t_far: f32, stats: &mut S);
+    /// The leaf holding primitives `g.index[first..first + count]` covers the ray's interval up
+    /// to `t_far`.
+    #[allow(clippy::too_many_arguments)]
+    fn leaf<S: Stats>(&mut self, g: &Prims, first: u32, count: u32, r: &ShearedRay, t_min: f32, t_far: f32, stats: &mut S);
     /// Whether nothing beyond `t` (the end of the leaf just visited) can change the answer.
     fn done(&self, t: f32) -> bool;
 }
@@ -29,13 +41,13 @@ pub trait Query {
 
 impl<Q: Query> Visitor for Q {
     #[inline(always)]
-    fn leaf<S: Stats>(&mut self, tree: &KdTree, node: KdNode, r: &ShearedRay, t_min: f32, _t_far: f32, stats: &mut S) {
-        let off = node.prim_offset() as usize;
-        let n = node.prim_count() as usize;
+    fn leaf<S: Stats>(&mut self, g: &Prims, first: u32, count: u32, r: &ShearedRay, t_min: f32, _t_far: f32, stats: &mut S) {
+        let off = first as usize;
+        let n = count as usize;
         let mut j = 0;
         while j < n && self.open() {
-            let p = tree.prims[off + j];
-            self.test(p, &tree.tris[p as usize], r, t_min, stats);
+            let p = g.index[off + j];
+            self.test(p, &g.tris[p as usize], r, t_min, stats);
             j += 1;
         }
     }
@@ -100,5 +112,25 @@ impl Query for AnyHit {
     #[inline(always)]
     fn finished(&self, _t: f32) -> bool {
         self.found
+    }
+}
+
+/// What a query stores per ray in a result buffer: the hit (closest hit) or 1/0 (any hit).
+pub trait Answer {
+    type Out: Copy;
+    fn answer(&self) -> Self::Out;
+}
+impl Answer for Closest {
+    type Out = Hit;
+    #[inline(always)]
+    fn answer(&self) -> Hit {
+        self.hit
+    }
+}
+impl Answer for AnyHit {
+    type Out = u32;
+    #[inline(always)]
+    fn answer(&self) -> u32 {
+        self.found as u32
     }
 }

@@ -1,0 +1,164 @@
+//! How hits are found, as four independent choices: the structure searched (brute force or
+//! the kd-tree), the traversal of that structure, the grouping of rays (one per thread, or
+//! packets of four) and the pipeline (one kernel per query, or the decomposed traverse → leaf
+//! list → intersect → fallback). `Accel` names one combination; `Accel::parse` reads the CLI's
+//! names and rejects combinations that do not exist.
+use anyhow::{bail, Result};
+use kdray_shared::kdtree::{Algorithm, MAX_SHORT_STACK};
+
+/// What is searched.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash)]
+pub enum Structure {
+    /// Every triangle (the oracle).
+    Brute,
+    KdTree,
+}
+
+/// How many rays one thread traces together.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash)]
+pub enum Grouping {
+    Single,
+    /// Four rays with lane masks (Wald; Horn et al.'s packet variant on the GPU).
+    Packet4,
+}
+
+/// How a query is split into kernels.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash)]
+pub enum Pipeline {
+    Monolithic,
+    /// Frolov & Ignatenko: leaf lists of `capacity` entries per ray (full-stack traversal),
+    /// intersection over them, a full-stack fallback for rays whose list overflowed.
+    Decomposed { capacity: u32 },
+}
+
+/// One way of finding hits: structure × traversal × grouping × pipeline.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash)]
+pub struct Accel {
+    pub structure: Structure,
+    /// The kd traversal (ignored by brute force; the decomposed pipeline uses the full stack).
+    pub traversal: Algorithm,
+    pub grouping: Grouping,
+    pub pipeline: Pipeline,
+}
+
+/// Default leaf-list capacity of the decomposed pipeline.
+pub const DEFAULT_LEAF_CAPACITY: u32 = 16;
+/// Largest leaf-list capacity accepted.
+pub const MAX_LEAF_CAPACITY: u32 = kdray_shared::kdtree::MAX_LEAF_LIST as u32;
+
+impl Accel {
+    /// The brute-force oracle.
+    pub const BRUTE: Accel = Accel { structure: Structure::Brute, traversal: Algorithm::Stack, grouping: Grouping::Single, pipeline: Pipeline::Monolithic };
+
+    /// A kd traversal, one ray per thread.
+    pub const fn kd(traversal: Algorithm) -> Accel {
+        Accel { structure: Structure::KdTree, traversal, grouping: Grouping::Single, pipeline: Pipeline::Monolithic }
+    }
+
+    /// A kd traversal in packets of four rays.
+    pub const fn packet(traversal: Algorithm) -> Accel {
+        Accel { structure: Structure::KdTree, traversal, grouping: Grouping::Packet4, pipeline: Pipeline::Monolithic }
+    }
+
+    /// The decomposed pipeline with leaf lists of `capacity` entries.
+    pub const fn decomposed(capacity: u32) -> Accel {
+        Accel { structure: Structure::KdTree, traversal: Algorithm::Stack, grouping: Grouping::Single, pipeline: Pipeline::Decomposed { capacity } }
+    }
+
+    /// `brute`, `stack`, `restart`, `pushdown`, `shortstack` (= `shortstack:3`), `shortstack:N`,
+    /// any kd traversal followed by `+packets`, or `decomposed[:CAPACITY]`.
+    pub fn parse(s: &str) -> Result<Accel> {
+        if let Some(alg) = s.strip_suffix("+packets") {
+            let a = Accel::parse(alg)?;
+            return match a.with_packets() {
+                Some(p) => Ok(p),
+                None => bail!("'+packets' applies to the kd traversals (stack, restart, pushdown, shortstack[:N]), not '{alg}'"),
+            };
+        }
+        if let Some(rest) = s.strip_prefix("decomposed") {
+            let capacity = match rest.strip_prefix(':').map(str::parse::<u32>) {
+                None if rest.is_empty() => DEFAULT_LEAF_CAPACITY,
+                Some(Ok(c)) if (1..=MAX_LEAF_CAPACITY).contains(&c) => c,
+                _ => bail!("unknown pipeline '{s}': use decomposed or decomposed:CAPACITY (1..={MAX_LEAF_CAPACITY} leaves per ray)"),
+            };
+            return Ok(Accel::decomposed(capacity));
+        }
+        Ok(match s {
+            "brute" => Accel::BRUTE,
+            "stack" => Accel::kd(Algorithm::Stack),
+            "restart" => Accel::kd(Algorithm::Restart),
+            "pushdown" => Accel::kd(Algorithm::PushDown),
+            "shortstack" => Accel::kd(Algorithm::ShortStack(3)),
+            s => match s.strip_prefix("shortstack:").map(str::parse::<u32>) {
+                Some(Ok(n)) if (1..=MAX_SHORT_STACK).contains(&n) => Accel::kd(Algorithm::ShortStack(n)),
+                _ => bail!(
+                    "unknown traversal '{s}': use brute, stack, restart, pushdown, shortstack or shortstack:N (N = 1..={MAX_SHORT_STACK}), optionally +packets, or decomposed[:CAPACITY]"
+                ),
+            },
+        })
+    }
+
+    pub fn name(&self) -> String {
+        match (self.structure, self.grouping, self.pipeline) {
+            (Structure::Brute, _, _) => "brute".into(),
+            (_, _, Pipeline::Decomposed { capacity }) => format!("decomposed:{capacity}"),
+            (_, Grouping::Single, _) => alg_name(self.traversal),
+            (_, Grouping::Packet4, _) => format!("{}+packets", alg_name(self.traversal)),
+        }
+    }
+
+    /// The same traversal with 4-ray packets (`None` for brute force and the decomposed pipeline).
+    pub fn with_packets(self) -> Option<Accel> {
+        match (self.structure, self.pipeline) {
+            (Structure::KdTree, Pipeline::Monolithic) => Some(Accel::packet(self.traversal)),
+            _ => None,
+        }
+    }
+
+    pub fn is_packet(self) -> bool {
+        self.grouping == Grouping::Packet4
+    }
+
+    /// Whether a kd-tree is needed.
+    pub fn needs_tree(self) -> bool {
+        self.structure == Structure::KdTree
+    }
+
+    /// The brute-force oracle and every single-ray kd traversal the GPU module has a kernel
+    /// for (read from the module: short stacks of the sizes it was built with).
+    pub fn all() -> Vec<Accel> {
+        let mut v = vec![Accel::BRUTE, Accel::kd(Algorithm::Stack), Accel::kd(Algorithm::Restart), Accel::kd(Algorithm::PushDown)];
+        v.extend(gpu_short_stacks().into_iter().map(|n| Accel::kd(Algorithm::ShortStack(n))));
+        v
+    }
+
+    /// The packet traversals the GPU module has kernels for.
+    pub fn gpu_packets() -> Vec<Accel> {
+        let names = gpu_entry_points();
+        [Algorithm::Stack, Algorithm::Restart, Algorithm::PushDown]
+            .into_iter()
+            .chain((1..=MAX_SHORT_STACK).map(Algorithm::ShortStack))
+            .filter(|a| names.iter().any(|n| *n == format!("closest_packet_{}", crate::kernels::kernel_suffix(*a))))
+            .map(Accel::packet)
+            .collect()
+    }
+}
+
+fn gpu_entry_points() -> Vec<String> {
+    crate::gpu::module_info().map(|m| m.entry_points.iter().map(|e| crate::gpu::short_name(&e.name).to_string()).collect()).unwrap_or_default()
+}
+
+/// Short-stack sizes with a single-ray GPU kernel.
+pub fn gpu_short_stacks() -> Vec<u32> {
+    let names = gpu_entry_points();
+    (1..=MAX_SHORT_STACK).filter(|n| names.iter().any(|e| *e == format!("closest_shortstack{n}"))).collect()
+}
+
+fn alg_name(a: Algorithm) -> String {
+    match a {
+        Algorithm::Stack => "stack".into(),
+        Algorithm::Restart => "restart".into(),
+        Algorithm::PushDown => "pushdown".into(),
+        Algorithm::ShortStack(n) => format!("shortstack:{n}"),
+    }
+}

@@ -1,0 +1,361 @@
+//! Every kernel family, declared once on the host: a struct of named, typed buffers and the
+//! family's parameters, implementing `runtime::Kernel`. The same value runs on both runtimes:
+//! its `entry` names the SPIR-V entry point (whose bindings the GPU runtime checks these against),
+//! its `run` calls the `kdray-shared` per-item function that the entry point calls.
+//!
+//! Adding a kernel: a per-item function in `shared/src/<capability>.rs`, a thin entry point in
+//! `shader-crate/src/<capability>.rs`, and a struct here with `entry`, `bindings` and `run`
+//! (see `RngFill`, the smallest).
+use crate::runtime::{read, write, Bind, Buffer, HostStore, Kernel};
+use bytemuck::Pod;
+use kdray_shared::kdtree::{KdNode, KdTree, LeafRef, PacketTraversal, Traversal, WithTraversal, PACKET};
+use kdray_shared::query::{AnyHit, Answer, Closest, Query};
+use kdray_shared::brute::BruteForce;
+use kdray_shared::trace::{self, Brute, Kd};
+use kdray_shared::{render, Hit, ItemParams, Light, Material, PathState, Ray, RenderParams, ShadeTerms, TraceParams, Triangle};
+use std::borrow::Cow;
+use std::marker::PhantomData;
+
+/// A query whose answers a kernel stores: closest hit (`Hit`) or any hit (`u32` flags).
+pub trait QueryKind: Query + BruteForce + Answer<Out: Pod + Send + Sync> + Sync + 'static {
+    /// Entry-point prefix (`closest`, `any`).
+    const PREFIX: &'static str;
+}
+impl QueryKind for Closest {
+    const PREFIX: &'static str = "closest";
+}
+impl QueryKind for AnyHit {
+    const PREFIX: &'static str = "any";
+}
+
+/// The scene as the ray-query kernels bind it.
+pub struct SceneBinds<'a> {
+    pub tris: &'a Buffer<Triangle>,
+    pub nodes: &'a Buffer<KdNode>,
+    pub prims: &'a Buffer<u32>,
+}
+
+impl<'a> SceneBinds<'a> {
+    /// The scene as a kernel's native twin sees it.
+    fn tree(&self, p: &TraceParams) -> KdTree<'a> {
+        trace::tree(p, self.tris.host(), self.nodes.host(), self.prims.host())
+    }
+
+    fn binds(&self) -> [Bind<'a>; 3] {
+        [read("tris", self.tris), read("nodes", self.nodes), read("prims", self.prims)]
+    }
+}
+
+type TraceFn<O> = fn(u32, &TraceParams, &[Ray], &KdTree, &mut HostStore<O>);
+
+/// How a trace kernel finds hits: brute force, or a kd traversal one ray per thread, or four.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum TraceMethod {
+    Brute,
+    Single(kdray_shared::kdtree::Algorithm),
+    Packet(kdray_shared::kdtree::Algorithm),
+}
+
+/// Closest-hit or any-hit queries for `params.count` rays (`trace::trace` / `trace::trace_packet`).
+pub struct Trace<'a, Q: QueryKind> {
+    pub params: TraceParams,
+    pub rays: &'a Buffer<Ray>,
+    pub scene: SceneBinds<'a>,
+    pub out: &'a Buffer<Q::Out>,
+    entry: String,
+    packet: bool,
+    cpu: TraceFn<Q::Out>,
+}
+
+struct Pick<Q>(bool, PhantomData<Q>);
+impl<Q: QueryKind> WithTraversal for Pick<Q> {
+    type Out = TraceFn<Q::Out>;
+    fn call<T: Traversal + PacketTraversal>(self) -> TraceFn<Q::Out> {
+        if self.0 {
+            trace::trace_packet::<T, Q, HostStore<Q::Out>>
+        } else {
+            trace::trace::<Kd<T>, Q, HostStore<Q::Out>>
+        }
+    }
+}
+
+impl<'a, Q: QueryKind> Trace<'a, Q> {
+    pub fn new(method: TraceMethod, params: TraceParams, rays: &'a Buffer<Ray>, scene: SceneBinds<'a>, out: &'a Buffer<Q::Out>) -> Self {
+        use kdray_shared::kdtree::with_traversal;
+        let (suffix, packet, cpu): (String, bool, TraceFn<Q::Out>) = match method {
+            TraceMethod::Brute => ("brute".into(), false, trace::trace::<Brute, Q, HostStore<Q::Out>>),
+            TraceMethod::Single(a) => (kernel_suffix(a), false, with_traversal(a, Pick::<Q>(false, PhantomData))),
+            TraceMethod::Packet(a) => (format!("packet_{}", kernel_suffix(a)), true, with_traversal(a, Pick::<Q>(true, PhantomData))),
+        };
+        Trace { params, rays, scene, out, entry: format!("{}_{suffix}", Q::PREFIX), packet, cpu }
+    }
+}
+
+/// The entry-point suffix of a kd traversal (`stack`, `restart`, `pushdown`, `shortstackN`).
+pub fn kernel_suffix(a: kdray_shared::kdtree::Algorithm) -> String {
+    use kdray_shared::kdtree::Algorithm::*;
+    match a {
+        Stack => "stack".into(),
+        Restart => "restart".into(),
+        PushDown => "pushdown".into(),
+        ShortStack(n) => format!("shortstack{n}"),
+    }
+}
+
+impl<Q: QueryKind> Kernel for Trace<'_, Q> {
+    fn entry(&self) -> Cow<'static, str> {
+        self.entry.clone().into()
+    }
+    fn params(&self) -> &[u8] {
+        bytemuck::bytes_of(&self.params)
+    }
+    fn bindings(&self) -> Vec<Bind<'_>> {
+        let mut b = vec![read("rays", self.rays)];
+        b.extend(self.scene.binds());
+        b.push(write("out", self.out));
+        b
+    }
+    fn threads(&self) -> u32 {
+        if self.packet {
+            self.params.count.div_ceil(PACKET as u32)
+        } else {
+            self.params.count
+        }
+    }
+    fn run(&self, t: u32) {
+        self.run_many(t..t + 1)
+    }
+    fn run_many(&self, ts: std::ops::Range<u32>) {
+        let (rays, tree, mut out) = (self.rays.host(), self.scene.tree(&self.params), self.out.host_store());
+        for t in ts {
+            (self.cpu)(t, &self.params, rays, &tree, &mut out)
+        }
+    }
+}
+
+/// Decomposed pipeline, step 1: leaf lists (`trace::traverse_leaves`).
+pub struct TraverseLeaves<'a> {
+    pub params: TraceParams,
+    pub rays: &'a Buffer<Ray>,
+    pub scene: SceneBinds<'a>,
+    pub lists: &'a Buffer<LeafRef>,
+    pub status: &'a Buffer<u32>,
+}
+
+impl Kernel for TraverseLeaves<'_> {
+    fn entry(&self) -> Cow<'static, str> {
+        "traverse_leaves".into()
+    }
+    fn params(&self) -> &[u8] {
+        bytemuck::bytes_of(&self.params)
+    }
+    fn bindings(&self) -> Vec<Bind<'_>> {
+        let mut b = vec![read("rays", self.rays)];
+        b.extend(self.scene.binds());
+        b.extend([write("lists", self.lists), write("status", self.status)]);
+        b
+    }
+    fn threads(&self) -> u32 {
+        self.params.count
+    }
+    fn run(&self, t: u32) {
+        let tree = self.scene.tree(&self.params);
+        trace::traverse_leaves(t, &self.params, self.rays.host(), &tree, &mut self.lists.host_store(), &mut self.status.host_store())
+    }
+}
+
+/// Decomposed pipeline, step 2: the listed leaves (`trace::intersect_listed`).
+pub struct IntersectListed<'a, Q: QueryKind> {
+    pub params: TraceParams,
+    pub rays: &'a Buffer<Ray>,
+    pub scene: SceneBinds<'a>,
+    pub lists: &'a Buffer<LeafRef>,
+    pub status: &'a Buffer<u32>,
+    pub out: &'a Buffer<Q::Out>,
+}
+
+impl<Q: QueryKind> Kernel for IntersectListed<'_, Q> {
+    fn entry(&self) -> Cow<'static, str> {
+        format!("{}_leaves", Q::PREFIX).into()
+    }
+    fn params(&self) -> &[u8] {
+        bytemuck::bytes_of(&self.params)
+    }
+    fn bindings(&self) -> Vec<Bind<'_>> {
+        let mut b = vec![read("rays", self.rays)];
+        b.extend(self.scene.binds());
+        b.extend([read("lists", self.lists), write("status", self.status), write("out", self.out)]);
+        b
+    }
+    fn threads(&self) -> u32 {
+        self.params.count
+    }
+    fn run(&self, t: u32) {
+        let tree = self.scene.tree(&self.params);
+        trace::intersect_listed::<Q, _, _>(t, &self.params, self.rays.host(), &tree, self.lists.host(), &mut self.status.host_store(), &mut self.out.host_store())
+    }
+}
+
+/// Decomposed pipeline, step 3: rays whose list overflowed unsettled (`trace::fallback`).
+pub struct Fallback<'a, Q: QueryKind> {
+    pub params: TraceParams,
+    pub rays: &'a Buffer<Ray>,
+    pub scene: SceneBinds<'a>,
+    pub status: &'a Buffer<u32>,
+    pub out: &'a Buffer<Q::Out>,
+}
+
+impl<Q: QueryKind> Kernel for Fallback<'_, Q> {
+    fn entry(&self) -> Cow<'static, str> {
+        format!("{}_fallback", Q::PREFIX).into()
+    }
+    fn params(&self) -> &[u8] {
+        bytemuck::bytes_of(&self.params)
+    }
+    fn bindings(&self) -> Vec<Bind<'_>> {
+        let mut b = vec![read("rays", self.rays)];
+        b.extend(self.scene.binds());
+        b.extend([read("status", self.status), write("out", self.out)]);
+        b
+    }
+    fn threads(&self) -> u32 {
+        self.params.count
+    }
+    fn run(&self, t: u32) {
+        let tree = self.scene.tree(&self.params);
+        trace::fallback::<Q, _>(t, &self.params, self.rays.host(), &tree, self.status.host(), &mut self.out.host_store())
+    }
+}
+
+/// Primary rays and fresh paths (`render::camera_rays`).
+pub struct CameraRays<'a> {
+    pub params: RenderParams,
+    pub rays: &'a Buffer<Ray>,
+    pub paths: &'a Buffer<PathState>,
+}
+
+impl Kernel for CameraRays<'_> {
+    fn entry(&self) -> Cow<'static, str> {
+        "camera_rays".into()
+    }
+    fn params(&self) -> &[u8] {
+        bytemuck::bytes_of(&self.params)
+    }
+    fn bindings(&self) -> Vec<Bind<'_>> {
+        vec![write("rays", self.rays), write("paths", self.paths)]
+    }
+    fn threads(&self) -> u32 {
+        self.params.count
+    }
+    fn run(&self, t: u32) {
+        render::camera_rays(t, &self.params, &mut self.rays.host_store(), &mut self.paths.host_store())
+    }
+}
+
+/// One bounce of every path: reflect or shade (`render::path_step`).
+pub struct PathStep<'a> {
+    pub params: RenderParams,
+    pub rays: &'a Buffer<Ray>,
+    pub tris: &'a Buffer<Triangle>,
+    pub hits: &'a Buffer<Hit>,
+    pub materials: &'a Buffer<Material>,
+    pub lights: &'a Buffer<Light>,
+    pub paths: &'a Buffer<PathState>,
+    pub shadow_rays: &'a Buffer<Ray>,
+    pub terms: &'a Buffer<ShadeTerms>,
+}
+
+impl Kernel for PathStep<'_> {
+    fn entry(&self) -> Cow<'static, str> {
+        "path_step".into()
+    }
+    fn params(&self) -> &[u8] {
+        bytemuck::bytes_of(&self.params)
+    }
+    fn bindings(&self) -> Vec<Bind<'_>> {
+        vec![
+            write("rays", self.rays),
+            read("tris", self.tris),
+            read("hits", self.hits),
+            read("materials", self.materials),
+            read("lights", self.lights),
+            write("paths", self.paths),
+            write("shadow_rays", self.shadow_rays),
+            write("terms", self.terms),
+        ]
+    }
+    fn threads(&self) -> u32 {
+        self.params.count
+    }
+    fn run(&self, t: u32) {
+        render::path_step(
+            t,
+            &self.params,
+            &mut self.rays.host_store(),
+            self.tris.host(),
+            self.hits.host(),
+            self.materials.host(),
+            self.lights.host(),
+            &mut self.paths.host_store(),
+            &mut self.shadow_rays.host_store(),
+            &mut self.terms.host_store(),
+        )
+    }
+}
+
+/// Adds the shaded terms of every path (`render::accumulate`).
+pub struct Accumulate<'a> {
+    pub params: RenderParams,
+    pub terms: &'a Buffer<ShadeTerms>,
+    pub occluded: &'a Buffer<u32>,
+    pub paths: &'a Buffer<PathState>,
+    pub radiance: &'a Buffer<[f32; 4]>,
+}
+
+impl Kernel for Accumulate<'_> {
+    fn entry(&self) -> Cow<'static, str> {
+        "accumulate".into()
+    }
+    fn params(&self) -> &[u8] {
+        bytemuck::bytes_of(&self.params)
+    }
+    fn bindings(&self) -> Vec<Bind<'_>> {
+        vec![read("terms", self.terms), read("occluded", self.occluded), write("paths", self.paths), write("radiance", self.radiance)]
+    }
+    fn threads(&self) -> u32 {
+        self.params.count
+    }
+    fn run(&self, t: u32) {
+        render::accumulate(t, &self.params, self.terms.host(), self.occluded.host(), &mut self.paths.host_store(), &mut self.radiance.host_store())
+    }
+}
+
+/// Four numbers of each random stream (`render::rng_fill`).
+pub struct RngFill<'a> {
+    pub params: ItemParams,
+    pub out: &'a Buffer<[u32; 4]>,
+}
+
+impl<'a> RngFill<'a> {
+    pub fn new(count: u32, first: u32, seed: u32, out: &'a Buffer<[u32; 4]>) -> Self {
+        RngFill { params: ItemParams { count, first, seed, _pad: 0 }, out }
+    }
+}
+
+impl Kernel for RngFill<'_> {
+    fn entry(&self) -> Cow<'static, str> {
+        "rng_fill".into()
+    }
+    fn params(&self) -> &[u8] {
+        bytemuck::bytes_of(&self.params)
+    }
+    fn bindings(&self) -> Vec<Bind<'_>> {
+        vec![write("out", self.out)]
+    }
+    fn threads(&self) -> u32 {
+        self.params.count
+    }
+    fn run(&self, t: u32) {
+        render::rng_fill(t, &self.params, &mut self.out.host_store())
+    }
+}

@@ -1,0 +1,332 @@
+//! The runtimes: where a pass runs. A pass is a `Kernel` value — one per-item function of
+//! `kdray-shared` with named, typed buffers and its parameters — and both runtimes run the same
+//! value: the wgpu runtime (`crate::gpu::Gpu`) dispatches the kernel's SPIR-V entry point, the
+//! native runtime (`cpu::Cpu`) calls the kernel's per-item function for every item over all
+//! cores. Integrators (`crate::integrator`) and the tracer (`crate::tracer`) are written once
+//! against `dyn Runtime` and hold no wgpu type.
+//!
+//! Work is recorded into `Commands` and submitted; results come back through `Pending`
+//! read-backs that are waited for separately, so a GPU keeps working on the next batch while
+//! the host reads the last one. On the CPU every command runs when it is recorded.
+pub mod cpu;
+
+use anyhow::{bail, Result};
+use bytemuck::Pod;
+use std::borrow::Cow;
+use std::cell::UnsafeCell;
+use std::marker::PhantomData;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+
+pub use cpu::Cpu;
+
+/// Where a buffer's memory lives.
+pub(crate) enum Mem {
+    Gpu { buffer: wgpu::Buffer, dead: Arc<Mutex<Vec<u64>>> },
+    /// Host memory in 4-byte words (every buffer element type is 4-byte aligned). Kernels
+    /// running on the native runtime read and write it through raw pointers (see `HostStore`).
+    Cpu(Box<[UnsafeCell<u32>]>),
+}
+
+/// A buffer of either runtime, untyped: identity (for caches), size and memory.
+pub struct RawBuffer {
+    id: u64,
+    bytes: u64,
+    label: String,
+    pub(crate) mem: Mem,
+}
+
+// SAFETY: host memory is written only by the native runtime: by kernels during a dispatch,
+// under the kernel contract (items write disjoint elements, nothing bound for reading is written
+// in the same dispatch), and by the runtime between dispatches.
+unsafe impl Sync for RawBuffer {}
+unsafe impl Send for RawBuffer {}
+
+static NEXT_ID: AtomicU64 = AtomicU64::new(1);
+
+impl RawBuffer {
+    pub(crate) fn new(label: &str, bytes: u64, mem: Mem) -> RawBuffer {
+        RawBuffer { id: NEXT_ID.fetch_add(1, Ordering::Relaxed), bytes, label: label.to_string(), mem }
+    }
+    pub fn id(&self) -> u64 {
+        self.id
+    }
+    pub fn bytes(&self) -> u64 {
+        self.bytes
+    }
+    pub fn label(&self) -> &str {
+        &self.label
+    }
+    pub(crate) fn gpu(&self) -> Option<&wgpu::Buffer> {
+        match &self.mem {
+            Mem::Gpu { buffer, .. } => Some(buffer),
+            Mem::Cpu(_) => None,
+        }
+    }
+    pub(crate) fn host_ptr(&self) -> Option<*mut u8> {
+        match &self.mem {
+            Mem::Cpu(words) => Some(words.as_ptr() as *mut u8),
+            Mem::Gpu { .. } => None,
+        }
+    }
+}
+
+impl Drop for RawBuffer {
+    fn drop(&mut self) {
+        // Bind groups that name this buffer are dropped from the GPU's cache.
+        if let Mem::Gpu { dead, .. } = &self.mem {
+            if let Ok(mut d) = dead.lock() {
+                d.push(self.id);
+            }
+        }
+    }
+}
+
+/// A typed buffer of `len` elements of `T` on one runtime.
+pub struct Buffer<T> {
+    raw: RawBuffer,
+    len: usize,
+    _t: PhantomData<T>,
+}
+
+impl<T: Pod> Buffer<T> {
+    pub(crate) fn from_raw(raw: RawBuffer, len: usize) -> Self {
+        Buffer { raw, len, _t: PhantomData }
+    }
+    pub fn len(&self) -> usize {
+        self.len
+    }
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+    pub fn raw(&self) -> &RawBuffer {
+        &self.raw
+    }
+    /// The untyped buffer (to keep for reuse).
+    pub fn into_raw(self) -> RawBuffer {
+        self.raw
+    }
+
+    /// The elements, for a kernel's native twin (and only then: GPU buffers have none).
+    pub fn host(&self) -> &[T] {
+        let p = self.raw.host_ptr().expect("kernel ran natively over a GPU buffer (Cpu::dispatch checks this)");
+        // SAFETY: host memory of at least len·size_of::<T>() bytes, 4-byte aligned, and T is
+        // Pod with alignment ≤ 4 (checked when the buffer was made); not written during a
+        // dispatch that reads it (kernel contract).
+        unsafe { std::slice::from_raw_parts(p as *const T, self.len) }
+    }
+
+    /// Element access for a kernel's native twin that writes this buffer.
+    pub fn host_store(&self) -> HostStore<T> {
+        let p = self.raw.host_ptr().expect("kernel ran natively over a GPU buffer (Cpu::dispatch checks this)");
+        HostStore { ptr: p as *mut T, len: self.len }
+    }
+}
+
+/// The native form of a buffer a kernel writes: every thread of a dispatch holds one and writes
+/// its own elements (the GPU's contract), through a raw pointer.
+#[derive(Copy, Clone)]
+pub struct HostStore<T> {
+    ptr: *mut T,
+    len: usize,
+}
+
+impl<T: Copy> kdray_shared::kernel::Store<T> for HostStore<T> {
+    #[inline(always)]
+    fn load(&self, i: usize) -> T {
+        assert!(i < self.len, "kernel read element {i} of {}", self.len);
+        // SAFETY: in bounds; elements are only written by the item that owns them.
+        unsafe { self.ptr.add(i).read() }
+    }
+    #[inline(always)]
+    fn store(&mut self, i: usize, v: T) {
+        assert!(i < self.len, "kernel wrote element {i} of {}", self.len);
+        // SAFETY: in bounds; no other item reads or writes element i in this dispatch.
+        unsafe { self.ptr.add(i).write(v) }
+    }
+    #[inline(always)]
+    fn len(&self) -> usize {
+        self.len
+    }
+}
+
+/// How a kernel uses one of its buffers.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum Access {
+    Read,
+    /// Written (and possibly read back at the item's own elements).
+    Write,
+}
+
+/// One named buffer of a pass. The GPU runtime checks every binding against the entry point's
+/// bindings in the SPIR-V module: same name, same element size, read-only where read.
+pub struct Bind<'a> {
+    pub name: &'static str,
+    pub buffer: &'a RawBuffer,
+    pub access: Access,
+    /// Bytes per element on the host (`size_of::<T>()`).
+    pub elem: u32,
+}
+
+/// A buffer the kernel only reads.
+pub fn read<'a, T: Pod>(name: &'static str, b: &'a Buffer<T>) -> Bind<'a> {
+    Bind { name, buffer: b.raw(), access: Access::Read, elem: std::mem::size_of::<T>() as u32 }
+}
+
+/// A buffer the kernel writes.
+pub fn write<'a, T: Pod>(name: &'static str, b: &'a Buffer<T>) -> Bind<'a> {
+    Bind { name, buffer: b.raw(), access: Access::Write, elem: std::mem::size_of::<T>() as u32 }
+}
+
+/// One pass: a kernel with its buffers and parameters, runnable on either runtime. Declared once
+/// per kernel family (`crate::kernels`); the SPIR-V entry point and the native twin call the same
+/// `kdray-shared` function.
+pub trait Kernel: Sync {
+    /// The SPIR-V entry point.
+    fn entry(&self) -> Cow<'static, str>;
+    /// The push constants (the family's parameter struct as bytes).
+    fn params(&self) -> &[u8];
+    /// The buffers, by name.
+    fn bindings(&self) -> Vec<Bind<'_>>;
+    /// Threads (work items) of a direct dispatch.
+    fn threads(&self) -> u32;
+    /// Threads per workgroup of the entry point (checked against the module).
+    fn workgroup(&self) -> u32 {
+        64
+    }
+    /// The native twin: runs thread `t`.
+    fn run(&self, t: u32);
+    /// Runs threads `ts` (one dynamic call per chunk of threads on the native runtime).
+    fn run_many(&self, ts: std::ops::Range<u32>) {
+        for t in ts {
+            self.run(t);
+        }
+    }
+}
+
+/// Recorded work of one submission.
+pub struct Commands {
+    pub(crate) encoder: Option<wgpu::CommandEncoder>,
+    pub(crate) readbacks: Vec<Arc<crate::gpu::Readback>>,
+}
+
+/// A read-back that was recorded; `Runtime::wait` returns its bytes once the work before it is
+/// done.
+pub struct Pending {
+    pub(crate) bytes: u64,
+    pub(crate) data: PendingData,
+}
+
+pub(crate) enum PendingData {
+    Ready(Vec<u32>),
+    Gpu(Arc<crate::gpu::Readback>),
+}
+
+/// A device that runs passes: the wgpu runtime or the native one.
+pub trait Runtime: Sync {
+    /// Which device, for reports.
+    fn name(&self) -> String;
+    /// Whether this is the native runtime.
+    fn is_native(&self) -> bool;
+    /// Largest buffer a kernel can bind, in bytes.
+    fn max_binding(&self) -> u64;
+    /// A zero-filled buffer of `bytes` bytes (never empty: at least 4).
+    fn alloc_raw(&self, label: &str, bytes: u64) -> Result<RawBuffer>;
+    /// Copies `data` into `buf` at byte 0.
+    fn write_raw(&self, buf: &RawBuffer, data: &[u8]) -> Result<()>;
+    fn begin(&self) -> Commands;
+    /// Records zero-filling `buf`.
+    fn clear(&self, c: &mut Commands, buf: &RawBuffer) -> Result<()>;
+    /// Records one pass over `k.threads()` threads.
+    fn dispatch(&self, c: &mut Commands, k: &dyn Kernel) -> Result<()>;
+    /// Records one pass whose workgroup counts (x, y, z) are read from `args` at `index` when it
+    /// runs (written by an earlier pass: e.g. a count of survivors).
+    fn dispatch_indirect(&self, c: &mut Commands, k: &dyn Kernel, args: &Buffer<[u32; 3]>, index: usize) -> Result<()>;
+    /// Records copying the first `bytes` bytes of `buf` back to the host.
+    fn read_back(&self, c: &mut Commands, buf: &RawBuffer, bytes: u64) -> Result<Pending>;
+    /// Submits the recorded work (on the GPU it runs while the host goes on).
+    fn submit(&self, c: Commands) -> Result<()>;
+    /// Waits for a read-back and returns its contents as 4-byte words (`cast` types them).
+    fn wait(&self, p: Pending) -> Result<Vec<u32>>;
+    /// Waits until everything submitted has run.
+    fn finish(&self) -> Result<()>;
+}
+
+impl dyn Runtime + '_ {
+    /// A zero-filled buffer of `n` elements (at least one: bindings cannot be empty). Fails with
+    /// a clear message when it exceeds the device's binding limit.
+    pub fn alloc<T: Pod>(&self, label: &str, n: usize) -> Result<Buffer<T>> {
+        if std::mem::align_of::<T>() > 4 {
+            bail!("{label}: element type aligned to more than 4 bytes");
+        }
+        let bytes = (n.max(1) * std::mem::size_of::<T>()).max(4) as u64;
+        self.check_size(label, bytes)?;
+        Ok(Buffer::from_raw(self.alloc_raw(label, bytes)?, n))
+    }
+
+    /// A buffer holding `data` (one zeroed element if empty).
+    pub fn upload<T: Pod>(&self, label: &str, data: &[T]) -> Result<Buffer<T>> {
+        let b = self.alloc::<T>(label, data.len())?;
+        if !data.is_empty() {
+            self.write_raw(b.raw(), bytemuck::cast_slice(data))?;
+        }
+        Ok(b)
+    }
+
+    /// Copies `data` into the start of `buf`.
+    pub fn write<T: Pod>(&self, buf: &Buffer<T>, data: &[T]) -> Result<()> {
+        if data.len() > buf.len().max(1) {
+            bail!("{}: {} elements written into a buffer of {}", buf.raw().label(), data.len(), buf.len());
+        }
+        self.write_raw(buf.raw(), bytemuck::cast_slice(data))
+    }
+
+    /// Records reading the first `n` elements of `buf` back.
+    pub fn read_back_of<T: Pod>(&self, c: &mut Commands, buf: &Buffer<T>, n: usize) -> Result<Pending> {
+        self.read_back(c, buf.raw(), (n.min(buf.len()) * std::mem::size_of::<T>()) as u64)
+    }
+
+    /// The first `n` elements of `buf`, now (submits and waits).
+    pub fn read<T: Pod>(&self, buf: &Buffer<T>, n: usize) -> Result<Vec<T>> {
+        let mut c = self.begin();
+        let p = self.read_back_of(&mut c, buf, n)?;
+        self.submit(c)?;
+        Ok(cast(self.wait(p)?))
+    }
+
+    /// Runs passes in order, now, and waits for them.
+    pub fn run(&self, passes: &[&dyn Kernel]) -> Result<()> {
+        let mut c = self.begin();
+        for k in passes {
+            self.dispatch(&mut c, *k)?;
+        }
+        self.submit(c)?;
+        self.finish()
+    }
+
+    pub fn check_size(&self, label: &str, bytes: u64) -> Result<()> {
+        let max = self.max_binding();
+        if bytes > max {
+            let what = if self.is_native() { "machine" } else { "GPU" };
+            bail!(
+                "scene too large for this {what}: the {label} buffer needs {:.1} MiB but {} allows at most {:.1} MiB per storage buffer",
+                bytes as f64 / 1048576.0,
+                self.name(),
+                max as f64 / 1048576.0
+            );
+        }
+        Ok(())
+    }
+}
+
+/// Typed elements of a read-back (without a copy where the words fit `T` exactly).
+pub fn cast<T: Pod>(words: Vec<u32>) -> Vec<T> {
+    let n = words.len() * 4 / std::mem::size_of::<T>().max(1);
+    let mut words = words;
+    words.truncate(n * std::mem::size_of::<T>() / 4);
+    words.shrink_to_fit();
+    match bytemuck::allocation::try_cast_vec::<u32, T>(words) {
+        Ok(v) => v,
+        Err((_, words)) => bytemuck::pod_collect_to_vec(&words),
+    }
+}

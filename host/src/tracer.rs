@@ -1,0 +1,237 @@
+//! Closest-hit and any-hit queries on one runtime: the scene's buffers, the acceleration
+//! structure (an enum that owns its arrays), and the passes that answer a query with a given
+//! `Accel` — one kernel, or the decomposed pipeline's three. Integrators build their schedules
+//! from `query_passes`; nothing here knows which runtime it runs on.
+use crate::accel::{Accel, Grouping, Pipeline, Structure};
+use crate::kdtree::KdTreeData;
+use crate::kernels::{Fallback, IntersectListed, QueryKind, SceneBinds, Trace, TraceMethod, TraverseLeaves};
+use crate::runtime::{cast, Buffer, Kernel, RawBuffer, Runtime};
+use crate::scene::Scene;
+use anyhow::{bail, Result};
+use kdray_shared::aabb::Aabb;
+use kdray_shared::kdtree::{KdNode, LeafRef};
+use kdray_shared::query::{AnyHit, Closest};
+use kdray_shared::{Hit, Light, Material, Ray, TraceParams, Triangle};
+
+/// Upper bound on ray-triangle tests of one brute-force submission.
+const MAX_TESTS_PER_SUBMIT: u64 = 1 << 30;
+/// Upper bound on rays of one kd-tree submission (each visits O(log N) nodes).
+const MAX_KD_RAYS_PER_SUBMIT: u64 = 1 << 22;
+/// Rays per batch on the native runtime (bounds the decomposed pipeline's leaf lists).
+const NATIVE_BATCH: u64 = 1 << 18;
+
+/// An acceleration structure as a runtime holds it.
+pub enum AccelStructure {
+    /// None: only brute force.
+    Triangles,
+    KdTree { nodes: Buffer<KdNode>, prims: Buffer<u32>, bounds: Aabb },
+}
+
+/// The decomposed pipeline's per-batch buffers: leaf lists (`capacity` entries per ray) and
+/// one status word per ray.
+pub struct LeafLists {
+    pub lists: Buffer<LeafRef>,
+    pub status: Buffer<u32>,
+}
+
+pub struct Tracer<'r> {
+    pub rt: &'r dyn Runtime,
+    pub tris: Buffer<Triangle>,
+    pub materials: Buffer<Material>,
+    pub lights: Buffer<Light>,
+    pub structure: AccelStructure,
+    /// Bound in place of the tree's arrays by kernels that do not use them (brute force).
+    no_nodes: Buffer<KdNode>,
+    no_prims: Buffer<u32>,
+    scene_bounds: Aabb,
+    pub light_count: u32,
+    pub has_mirror: bool,
+    tri_count: u64,
+    /// Buffers of earlier queries, reused by later ones (by label and size).
+    pool: std::sync::Mutex<Vec<(&'static str, RawBuffer)>>,
+}
+
+impl<'r> Tracer<'r> {
+    /// The scene on `rt`; `tree` is needed only for the kd traversals.
+    pub fn new(rt: &'r dyn Runtime, scene: &Scene, tree: Option<&KdTreeData>) -> Result<Self> {
+        let lights = scene.lights();
+        let (lo, hi) = scene.bounds();
+        let structure = match tree {
+            Some(t) => AccelStructure::KdTree { nodes: rt.upload("kd-tree node", &t.nodes)?, prims: rt.upload("kd-tree primitive index", &t.prims)?, bounds: t.bounds },
+            None => AccelStructure::Triangles,
+        };
+        Ok(Tracer {
+            rt,
+            tris: rt.upload("triangle", &scene.triangles)?,
+            materials: rt.upload("material", &scene.materials)?,
+            lights: rt.upload("light", &lights)?,
+            structure,
+            no_nodes: rt.alloc("no kd-tree nodes", 1)?,
+            no_prims: rt.alloc("no kd-tree primitives", 1)?,
+            scene_bounds: Aabb { min: lo.to_array(), max: hi.to_array() },
+            light_count: lights.len() as u32,
+            has_mirror: scene.has_mirror(),
+            tri_count: scene.triangles.len() as u64,
+            pool: std::sync::Mutex::new(Vec::new()),
+        })
+    }
+
+    pub fn device_name(&self) -> String {
+        self.rt.name()
+    }
+
+    /// Fails unless the structure `accel` searches was built.
+    pub fn check(&self, accel: Accel) -> Result<()> {
+        if accel.structure == Structure::KdTree && matches!(self.structure, AccelStructure::Triangles) {
+            bail!("no kd-tree was built for this scene");
+        }
+        Ok(())
+    }
+
+    /// The scene's buffers as the ray-query kernels bind them.
+    pub fn scene_binds(&self) -> SceneBinds<'_> {
+        match &self.structure {
+            AccelStructure::KdTree { nodes, prims, .. } => SceneBinds { tris: &self.tris, nodes, prims },
+            AccelStructure::Triangles => SceneBinds { tris: &self.tris, nodes: &self.no_nodes, prims: &self.no_prims },
+        }
+    }
+
+    /// Parameters of a query over `count` rays.
+    pub fn params(&self, accel: Accel, count: usize) -> TraceParams {
+        let b = match &self.structure {
+            AccelStructure::KdTree { bounds, .. } => *bounds,
+            AccelStructure::Triangles => self.scene_bounds,
+        };
+        let leaf_capacity = match accel.pipeline {
+            Pipeline::Decomposed { capacity } => capacity,
+            Pipeline::Monolithic => 0,
+        };
+        TraceParams { count: count as u32, leaf_capacity, bounds_min: b.min, bounds_max: b.max, ..Default::default() }
+    }
+
+    /// Items per batch: bounded by the binding limit (largest per-item record: 32 bytes, or
+    /// the leaf list), by the brute-force work per submission, and natively by memory; a
+    /// multiple of 64.
+    pub fn batch_size(&self, accel: Accel, total: usize) -> usize {
+        let record = match accel.pipeline {
+            Pipeline::Decomposed { capacity } => (capacity as u64 * std::mem::size_of::<LeafRef>() as u64).max(32),
+            Pipeline::Monolithic => 32,
+        };
+        let by_binding = self.rt.max_binding() / record;
+        let mut by_work = match accel.structure {
+            Structure::Brute => (MAX_TESTS_PER_SUBMIT / self.tri_count.max(1)).max(4096),
+            Structure::KdTree => MAX_KD_RAYS_PER_SUBMIT,
+        };
+        if self.rt.is_native() {
+            by_work = by_work.min(NATIVE_BATCH);
+        }
+        let b = by_binding.min(by_work).min(total.max(1) as u64) as usize;
+        if b >= total {
+            total.max(1)
+        } else {
+            (b / 64).max(1) * 64
+        }
+    }
+
+    /// The leaf-list buffers `accel` needs for batches of `n` rays (none unless decomposed).
+    pub fn leaf_lists(&self, accel: Accel, n: usize) -> Result<Option<LeafLists>> {
+        Ok(match accel.pipeline {
+            Pipeline::Decomposed { capacity } => {
+                Some(LeafLists { lists: self.rt.alloc("leaf list", n * capacity as usize)?, status: self.rt.alloc("leaf list status", n)? })
+            }
+            Pipeline::Monolithic => None,
+        })
+    }
+
+    /// The passes that answer query `Q` for the first `count` rays of `rays` into `out`: one
+    /// kernel, or the decomposed pipeline's traverse → intersect → fallback.
+    pub fn query_passes<'a, Q: QueryKind>(
+        &'a self,
+        accel: Accel,
+        count: usize,
+        rays: &'a Buffer<Ray>,
+        out: &'a Buffer<Q::Out>,
+        lists: Option<&'a LeafLists>,
+    ) -> Result<Vec<Box<dyn Kernel + 'a>>> {
+        self.check(accel)?;
+        let params = self.params(accel, count);
+        let scene = || self.scene_binds();
+        Ok(match (accel.structure, accel.grouping, accel.pipeline) {
+            (Structure::KdTree, _, Pipeline::Decomposed { .. }) => {
+                let Some(l) = lists else { bail!("the decomposed pipeline needs leaf-list buffers") };
+                vec![
+                    Box::new(TraverseLeaves { params, rays, scene: scene(), lists: &l.lists, status: &l.status }),
+                    Box::new(IntersectListed::<Q> { params, rays, scene: scene(), lists: &l.lists, status: &l.status, out }),
+                    Box::new(Fallback::<Q> { params, rays, scene: scene(), status: &l.status, out }),
+                ]
+            }
+            (Structure::Brute, _, _) => vec![Box::new(Trace::<Q>::new(TraceMethod::Brute, params, rays, scene(), out))],
+            (Structure::KdTree, Grouping::Single, _) => vec![Box::new(Trace::<Q>::new(TraceMethod::Single(accel.traversal), params, rays, scene(), out))],
+            (Structure::KdTree, Grouping::Packet4, _) => vec![Box::new(Trace::<Q>::new(TraceMethod::Packet(accel.traversal), params, rays, scene(), out))],
+        })
+    }
+
+    /// Answers `Q` for every ray, batch by batch; the next batch is uploaded and submitted
+    /// before the last one's answers are read.
+    fn query<Q: QueryKind>(&self, accel: Accel, rays: &[Ray]) -> Result<Vec<Q::Out>> {
+        self.check(accel)?;
+        let rt = self.rt;
+        let b = self.batch_size(accel, rays.len());
+        let lists = self.leaf_lists(accel, b)?;
+        // Two sets of buffers, used in turn.
+        let sets = if rays.len() > b { 2 } else { 1 };
+        let bufs: Vec<(Buffer<Ray>, Buffer<Q::Out>)> =
+            (0..sets).map(|_| Ok((self.scratch::<Ray>("ray", b)?, self.scratch::<Q::Out>("result", b)?))).collect::<Result<_>>()?;
+        let mut out = Vec::with_capacity(rays.len());
+        let mut pending = None;
+        for (i, batch) in rays.chunks(b).enumerate() {
+            let (rbuf, obuf) = &bufs[i % sets];
+            rt.write(rbuf, batch)?;
+            let mut c = rt.begin();
+            for k in self.query_passes::<Q>(accel, batch.len(), rbuf, obuf, lists.as_ref())? {
+                rt.dispatch(&mut c, k.as_ref())?;
+            }
+            let p = rt.read_back_of(&mut c, obuf, batch.len())?;
+            rt.submit(c)?;
+            if let Some(prev) = pending.replace(p) {
+                out.extend(cast::<Q::Out>(rt.wait(prev)?));
+            }
+        }
+        if let Some(p) = pending {
+            let last = cast::<Q::Out>(rt.wait(p)?);
+            if out.is_empty() {
+                out = last;
+            } else {
+                out.extend(last);
+            }
+        }
+        let mut pool = self.pool.lock().expect("buffer pool");
+        for (r, o) in bufs {
+            pool.push(("ray", r.into_raw()));
+            pool.push(("result", o.into_raw()));
+        }
+        pool.truncate(8);
+        Ok(out)
+    }
+
+    /// A buffer of `n` elements from the pool of earlier queries' buffers, or a new one.
+    /// (Its contents are whatever the last query left: every query writes what it reads.)
+    fn scratch<T: bytemuck::Pod>(&self, label: &'static str, n: usize) -> Result<Buffer<T>> {
+        let bytes = (n.max(1) * std::mem::size_of::<T>()).max(4) as u64;
+        let mut pool = self.pool.lock().expect("buffer pool");
+        if let Some(i) = pool.iter().position(|(l, r)| *l == label && r.bytes() == bytes.next_multiple_of(4)) {
+            let (_, raw) = pool.swap_remove(i);
+            return Ok(Buffer::from_raw(raw, n));
+        }
+        drop(pool);
+        self.rt.alloc::<T>(label, n)
+    }
+
+    pub fn closest_hits(&self, accel: Accel, rays: &[Ray]) -> Result<Vec<Hit>> {
+        self.query::<Closest>(accel, rays)
+    }
+
+    pub fn any_hits(&self, accel: Accel, rays: &[Ray]) -> Result<Vec<bool>> {
+        Ok(self.query::<AnyHit>(accel, rays)?.into_iter().map(|o| o != 0).collect())
+    }
+}

@@ -1,0 +1,35 @@
+//! What every kernel body is written against, so that one per-item function runs both as a
+//! SPIR-V compute entry point (`shader-crate`) and natively (the host's CPU runtime calls it for
+//! every item, in parallel).
+//!
+//! A kernel reads whole buffers through plain slices and writes through `Store`: on the GPU a
+//! storage-buffer slice, on the CPU a view that the runtime's threads share. The contract that
+//! makes the native twin safe is the GPU's own: within one dispatch, items write disjoint
+//! elements (item `i` writes element `i`, or its own range), and no buffer is both read as a
+//! slice and written.
+
+/// Element access to a buffer that a kernel writes (and may read back at its own elements).
+pub trait Store<T: Copy> {
+    fn load(&self, i: usize) -> T;
+    fn store(&mut self, i: usize, v: T);
+    fn len(&self) -> usize;
+    #[inline(always)]
+    fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+impl<T: Copy> Store<T> for [T] {
+    #[inline(always)]
+    fn load(&self, i: usize) -> T {
+        self[i]
+    }
+    #[inline(always)]
+    fn store(&mut self, i: usize, v: T) {
+        self[i] = v;
+    }
+    #[inline(always)]
+    fn len(&self) -> usize {
+        <[T]>::len(self)
+    }
+}

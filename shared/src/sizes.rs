@@ -1,0 +1,36 @@
+//! Compile-time layout checks of every buffer type the host and the kernels share: its size
+//! in bytes and its alignment (4: `f32`/`u32` fields and arrays only, so std430 and
+//! `#[repr(C)]` agree). A change that moves a byte fails to compile, natively and for SPIR-V.
+
+/// `layout!(Type => size, …)`: asserts `size_of::<Type>() == size` and `align_of::<Type>() == 4`.
+macro_rules! layout {
+    ($($t:ty => $size:expr),* $(,)?) => {
+        $(
+            const _: () = assert!(
+                core::mem::size_of::<$t>() == $size,
+                concat!("size_of::<", stringify!($t), ">() is not ", stringify!($size))
+            );
+            const _: () = assert!(
+                core::mem::align_of::<$t>() == 4,
+                concat!("align_of::<", stringify!($t), ">() is not 4")
+            );
+        )*
+    };
+}
+
+layout! {
+    crate::pod::Triangle => 48,
+    crate::pod::Hit => 16,
+    crate::pod::Material => 32,
+    crate::pod::Light => 64,
+    crate::pod::Camera => 64,
+    crate::pod::TraceParams => 48,
+    crate::pod::RenderParams => 96,
+    crate::pod::ItemParams => 16,
+    crate::pod::ShadeTerms => 32,
+    crate::pod::PathState => 32,
+    crate::kdtree::KdNode => 8,
+    crate::kdtree::LeafRef => 12,
+    crate::stats::Counters => 16,
+    crate::ray::Ray => 32,
+}

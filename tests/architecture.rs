@@ -1,0 +1,99 @@
+//! The layering rules of docs/architecture.md, checked on the source tree: a change that makes
+//! a lower layer depend on a higher one, or an integrator depend on wgpu, fails here.
+use std::path::{Path, PathBuf};
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+/// Every `.rs` file below `dir` with its text.
+fn sources(dir: &str) -> Vec<(PathBuf, String)> {
+    fn walk(p: &Path, out: &mut Vec<(PathBuf, String)>) {
+        let mut entries: Vec<_> = std::fs::read_dir(p).unwrap_or_else(|e| panic!("{}: {e}", p.display())).flatten().collect();
+        entries.sort_by_key(|e| e.path());
+        for e in entries {
+            let path = e.path();
+            if path.is_dir() {
+                walk(&path, out);
+            } else if path.extension().is_some_and(|x| x == "rs") {
+                let text = std::fs::read_to_string(&path).unwrap();
+                out.push((path, text));
+            }
+        }
+    }
+    let mut out = Vec::new();
+    let p = root().join(dir);
+    if p.is_dir() {
+        walk(&p, &mut out);
+    } else {
+        out.push((p.clone(), std::fs::read_to_string(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))));
+    }
+    out
+}
+
+/// Lines of code (comments dropped) of `dir` that contain `word`.
+fn uses(dir: &str, word: &str) -> Vec<String> {
+    let mut hits = Vec::new();
+    for (path, text) in sources(dir) {
+        for (n, line) in text.lines().enumerate() {
+            let code = line.split("//").next().unwrap_or("");
+            if code.contains(word) {
+                hits.push(format!("{}:{}: {}", path.display(), n + 1, line.trim()));
+            }
+        }
+    }
+    hits
+}
+
+#[test]
+fn shared_is_no_std_and_independent_of_the_host() {
+    let lib = std::fs::read_to_string(root().join("shared/src/lib.rs")).unwrap();
+    assert!(lib.contains("#![no_std]"));
+    for word in ["std::", "kdray::", "extern crate std", "wgpu"] {
+        let hits = uses("shared/src", word);
+        assert!(hits.is_empty(), "shared/ must not use {word}:\n{}", hits.join("\n"));
+    }
+    let manifest = std::fs::read_to_string(root().join("shared/Cargo.toml")).unwrap();
+    assert!(!manifest.contains("kdray ="), "shared/ must not depend on the host");
+}
+
+#[test]
+fn the_shader_crate_never_uses_the_host() {
+    let manifest = std::fs::read_to_string(root().join("shader-crate/Cargo.toml")).unwrap();
+    let deps = manifest.split("[dependencies]").nth(1).unwrap_or("");
+    for line in deps.lines().take_while(|l| !l.starts_with('[')) {
+        let name = line.split('=').next().unwrap_or("").trim();
+        assert!(
+            name.is_empty() || ["spirv-std", "kdray-shared", "glam", "bytemuck"].contains(&name),
+            "shader-crate depends on {name}"
+        );
+    }
+    for word in ["kdray::", "wgpu"] {
+        let hits = uses("shader-crate/src", word);
+        assert!(hits.is_empty(), "shader-crate must not use {word}:\n{}", hits.join("\n"));
+    }
+}
+
+#[test]
+fn runtimes_hold_no_integrator() {
+    for dir in ["host/src/runtime", "host/src/gpu"] {
+        let hits = uses(dir, "integrator");
+        assert!(hits.is_empty(), "{dir} must not use an integrator:\n{}", hits.join("\n"));
+    }
+}
+
+#[test]
+fn integrators_tracer_and_kernel_declarations_hold_no_wgpu() {
+    for dir in ["host/src/integrator", "host/src/tracer.rs", "host/src/kernels.rs", "host/src/accel.rs"] {
+        let hits = uses(dir, "wgpu");
+        assert!(hits.is_empty(), "{dir} must not use wgpu:\n{}", hits.join("\n"));
+    }
+}
+
+#[test]
+fn queries_and_statistics_do_not_import_the_kd_tree() {
+    for file in ["shared/src/query.rs", "shared/src/stats.rs", "shared/src/brute.rs", "shared/src/kernel.rs"] {
+        let hits = uses(file, "kdtree");
+        assert!(hits.is_empty(), "{file} must not import the kd-tree:\n{}", hits.join("\n"));
+    }
+}
