@@ -1,5 +1,6 @@
 //! The layering rules of docs/architecture.md, checked on the source tree: a change that makes
-//! a lower layer depend on a higher one, or an integrator depend on wgpu, fails here.
+//! a lower host layer name a higher one (runtime < kernels < tracer < integrator < commands),
+//! `shared` or the shader crate use the host, or an integrator use wgpu, fails here.
 use std::path::{Path, PathBuf};
 
 fn root() -> PathBuf {
@@ -74,11 +75,37 @@ fn the_shader_crate_never_uses_the_host() {
     }
 }
 
+/// The host's layers, lowest first: a layer may use the ones below it, never one above.
+const LAYERS: [(&str, &[&str]); 5] = [
+    ("runtime", &["host/src/runtime", "host/src/gpu"]),
+    ("kernels", &["host/src/kernels.rs"]),
+    ("tracer", &["host/src/tracer.rs", "host/src/accel.rs"]),
+    ("integrator", &["host/src/integrator"]),
+    ("commands", &["host/src/bench", "host/src/cli.rs"]),
+];
+
+/// How code names each layer.
+fn names(layer: &str) -> &'static [&'static str] {
+    match layer {
+        "runtime" => &["crate::runtime", "crate::gpu"],
+        "kernels" => &["crate::kernels"],
+        "tracer" => &["crate::tracer", "crate::accel", "crate::Tracer", "crate::Accel"],
+        "integrator" => &["crate::integrator", "integrator::"],
+        _ => &["crate::bench", "crate::cli"],
+    }
+}
+
 #[test]
-fn runtimes_hold_no_integrator() {
-    for dir in ["host/src/runtime", "host/src/gpu"] {
-        let hits = uses(dir, "integrator");
-        assert!(hits.is_empty(), "{dir} must not use an integrator:\n{}", hits.join("\n"));
+fn layers_only_use_the_layers_below() {
+    for (i, (layer, dirs)) in LAYERS.iter().enumerate() {
+        for (above, _) in &LAYERS[i + 1..] {
+            for dir in *dirs {
+                for word in names(above) {
+                    let hits = uses(dir, word);
+                    assert!(hits.is_empty(), "the {layer} layer ({dir}) uses the {above} layer above it:\n{}", hits.join("\n"));
+                }
+            }
+        }
     }
 }
 

@@ -335,3 +335,29 @@ fn a_host_declaration_that_does_not_match_the_shader_is_an_error() {
         assert!(e.contains("kernel rng_fill") && e.contains("'out'"), "{}: {e}", rt.name());
     }
 }
+
+/// Every adapter the machine has, opened at once (a runtime per device): each renders the image
+/// the native runtime renders.
+#[test]
+fn every_adapter_renders_the_native_image() {
+    if common::gpu().is_none() {
+        return;
+    }
+    let scene = scene::load("cornell-mirror").unwrap();
+    let cam = scene.camera.to_pod(48, 40);
+    let pb = indicatif::ProgressBar::hidden();
+    let native = direct::render(&Tracer::new(&NATIVE, &scene, None).unwrap(), Accel::BRUTE, &cam, 2, 4, &pb).unwrap();
+    let gpus = kdray::Gpu::open_all().unwrap();
+    assert!(!gpus.is_empty());
+    for g in &gpus {
+        let img = direct::render(&Tracer::new(g, &scene, None).unwrap(), Accel::BRUTE, &cam, 2, 4, &pb).unwrap();
+        let cmp = compare(&native, &img, 1.0);
+        println!("gpu:{} {}: {cmp}", g.index, g.adapter_line());
+        assert!(cmp.id_mismatches == 0 && cmp.max_colour_diff <= 1, "{cmp}");
+    }
+    // A buffer of one runtime is refused by another, with an error, not a panic.
+    let rt: &dyn kdray::Runtime = &gpus[0];
+    let host = (&NATIVE as &dyn kdray::Runtime).alloc::<[u32; 4]>("host", 8).unwrap();
+    let e = format!("{:#}", rt.run(&[&kdray::kernels::RngFill::new(8, 0, 1, &host)]).unwrap_err());
+    assert!(e.contains("native runtime"), "{e}");
+}

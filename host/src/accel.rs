@@ -145,7 +145,7 @@ impl Accel {
 }
 
 fn gpu_entry_points() -> Vec<String> {
-    crate::gpu::module_info().map(|m| m.entry_points.iter().map(|e| crate::gpu::short_name(&e.name).to_string()).collect()).unwrap_or_default()
+    crate::runtime::module::module_info().map(|m| m.entry_points.iter().map(|e| crate::runtime::module::short_name(&e.name).to_string()).collect()).unwrap_or_default()
 }
 
 /// Short-stack sizes with a single-ray GPU kernel.

@@ -196,9 +196,9 @@ pub fn run(cli: Cli) -> Result<()> {
             }
             if compile {
                 let g = Gpu::new()?;
-                for e in &gpu::module_info()?.entry_points {
+                for e in &crate::runtime::module::module_info()?.entry_points {
                     use std::io::Write as _;
-                    print!("compiling {} ... ", gpu::short_name(&e.name));
+                    print!("compiling {} ... ", crate::runtime::module::short_name(&e.name));
                     std::io::stdout().flush()?;
                     let start = Instant::now();
                     g.compile(&e.name)?;

@@ -37,8 +37,12 @@ pub struct SceneBinds<'a> {
 
 impl<'a> SceneBinds<'a> {
     /// The scene as a kernel's native twin sees it.
-    fn tree(&self, p: &TraceParams) -> KdTree<'a> {
-        trace::tree(p, self.tris.host(), self.nodes.host(), self.prims.host())
+    ///
+    /// # Safety
+    /// As `Buffer::host`: only inside `Kernel::run` of a native dispatch that binds these.
+    unsafe fn tree(&self, p: &TraceParams) -> KdTree<'a> {
+        // SAFETY: the caller's contract.
+        unsafe { trace::tree(p, self.tris.host(), self.nodes.host(), self.prims.host()) }
     }
 
     fn binds(&self) -> [Bind<'a>; 3] {
@@ -46,7 +50,7 @@ impl<'a> SceneBinds<'a> {
     }
 }
 
-type TraceFn<O> = fn(u32, &TraceParams, &[Ray], &KdTree, &mut HostStore<O>);
+type TraceFn<'s, O> = fn(u32, &TraceParams, &[Ray], &KdTree, &mut HostStore<'s, O>);
 
 /// How a trace kernel finds hits: brute force, or a kd traversal one ray per thread, or four.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
@@ -64,17 +68,17 @@ pub struct Trace<'a, Q: QueryKind> {
     pub out: &'a Buffer<Q::Out>,
     entry: String,
     packet: bool,
-    cpu: TraceFn<Q::Out>,
+    cpu: TraceFn<'a, Q::Out>,
 }
 
-struct Pick<Q>(bool, PhantomData<Q>);
-impl<Q: QueryKind> WithTraversal for Pick<Q> {
-    type Out = TraceFn<Q::Out>;
-    fn call<T: Traversal + PacketTraversal>(self) -> TraceFn<Q::Out> {
+struct Pick<'s, Q>(bool, PhantomData<&'s Q>);
+impl<'s, Q: QueryKind> WithTraversal for Pick<'s, Q> {
+    type Out = TraceFn<'s, Q::Out>;
+    fn call<T: Traversal + PacketTraversal>(self) -> TraceFn<'s, Q::Out> {
         if self.0 {
-            trace::trace_packet::<T, Q, HostStore<Q::Out>>
+            trace::trace_packet::<T, Q, HostStore<'s, Q::Out>>
         } else {
-            trace::trace::<Kd<T>, Q, HostStore<Q::Out>>
+            trace::trace::<Kd<T>, Q, HostStore<'s, Q::Out>>
         }
     }
 }
@@ -82,10 +86,10 @@ impl<Q: QueryKind> WithTraversal for Pick<Q> {
 impl<'a, Q: QueryKind> Trace<'a, Q> {
     pub fn new(method: TraceMethod, params: TraceParams, rays: &'a Buffer<Ray>, scene: SceneBinds<'a>, out: &'a Buffer<Q::Out>) -> Self {
         use kdray_shared::kdtree::with_traversal;
-        let (suffix, packet, cpu): (String, bool, TraceFn<Q::Out>) = match method {
-            TraceMethod::Brute => ("brute".into(), false, trace::trace::<Brute, Q, HostStore<Q::Out>>),
-            TraceMethod::Single(a) => (kernel_suffix(a), false, with_traversal(a, Pick::<Q>(false, PhantomData))),
-            TraceMethod::Packet(a) => (format!("packet_{}", kernel_suffix(a)), true, with_traversal(a, Pick::<Q>(true, PhantomData))),
+        let (suffix, packet, cpu): (String, bool, TraceFn<'a, Q::Out>) = match method {
+            TraceMethod::Brute => ("brute".into(), false, trace::trace::<Brute, Q, HostStore<'a, Q::Out>>),
+            TraceMethod::Single(a) => (kernel_suffix(a), false, with_traversal(a, Pick::<'a, Q>(false, PhantomData))),
+            TraceMethod::Packet(a) => (format!("packet_{}", kernel_suffix(a)), true, with_traversal(a, Pick::<'a, Q>(true, PhantomData))),
         };
         Trace { params, rays, scene, out, entry: format!("{}_{suffix}", Q::PREFIX), packet, cpu }
     }
@@ -126,7 +130,9 @@ impl<Q: QueryKind> Kernel for Trace<'_, Q> {
         self.run_many(t..t + 1)
     }
     fn run_many(&self, ts: std::ops::Range<u32>) {
-        let (rays, tree, mut out) = (self.rays.host(), self.scene.tree(&self.params), self.out.host_store());
+        // SAFETY: called by the native runtime during the dispatch of this pass, which holds
+        // its bindings; thread t writes only out[t] (out[4t..4t+4] for packets).
+        let (rays, tree, mut out) = unsafe { (self.rays.host(), self.scene.tree(&self.params), self.out.host_store()) };
         for t in ts {
             (self.cpu)(t, &self.params, rays, &tree, &mut out)
         }
@@ -159,8 +165,12 @@ impl Kernel for TraverseLeaves<'_> {
         self.params.count
     }
     fn run(&self, t: u32) {
-        let tree = self.scene.tree(&self.params);
-        trace::traverse_leaves(t, &self.params, self.rays.host(), &tree, &mut self.lists.host_store(), &mut self.status.host_store())
+        // SAFETY: called by the native runtime during the dispatch of this pass, which holds
+        // its bindings; item t reads and writes only its own elements of what it writes.
+        unsafe {
+            let tree = self.scene.tree(&self.params);
+            trace::traverse_leaves(t, &self.params, self.rays.host(), &tree, &mut self.lists.host_store(), &mut self.status.host_store())
+        }
     }
 }
 
@@ -191,8 +201,12 @@ impl<Q: QueryKind> Kernel for IntersectListed<'_, Q> {
         self.params.count
     }
     fn run(&self, t: u32) {
-        let tree = self.scene.tree(&self.params);
-        trace::intersect_listed::<Q, _, _>(t, &self.params, self.rays.host(), &tree, self.lists.host(), &mut self.status.host_store(), &mut self.out.host_store())
+        // SAFETY: called by the native runtime during the dispatch of this pass, which holds
+        // its bindings; item t reads and writes only its own elements of what it writes.
+        unsafe {
+            let tree = self.scene.tree(&self.params);
+            trace::intersect_listed::<Q, _, _>(t, &self.params, self.rays.host(), &tree, self.lists.host(), &mut self.status.host_store(), &mut self.out.host_store())
+        }
     }
 }
 
@@ -222,8 +236,12 @@ impl<Q: QueryKind> Kernel for Fallback<'_, Q> {
         self.params.count
     }
     fn run(&self, t: u32) {
-        let tree = self.scene.tree(&self.params);
-        trace::fallback::<Q, _>(t, &self.params, self.rays.host(), &tree, self.status.host(), &mut self.out.host_store())
+        // SAFETY: called by the native runtime during the dispatch of this pass, which holds
+        // its bindings; item t reads and writes only its own elements of what it writes.
+        unsafe {
+            let tree = self.scene.tree(&self.params);
+            trace::fallback::<Q, _>(t, &self.params, self.rays.host(), &tree, self.status.host(), &mut self.out.host_store())
+        }
     }
 }
 
@@ -248,7 +266,11 @@ impl Kernel for CameraRays<'_> {
         self.params.count
     }
     fn run(&self, t: u32) {
-        render::camera_rays(t, &self.params, &mut self.rays.host_store(), &mut self.paths.host_store())
+        // SAFETY: called by the native runtime during the dispatch of this pass, which holds
+        // its bindings; item t reads and writes only its own elements of what it writes.
+        unsafe {
+            render::camera_rays(t, &self.params, &mut self.rays.host_store(), &mut self.paths.host_store())
+        }
     }
 }
 
@@ -288,18 +310,22 @@ impl Kernel for PathStep<'_> {
         self.params.count
     }
     fn run(&self, t: u32) {
-        render::path_step(
-            t,
-            &self.params,
-            &mut self.rays.host_store(),
-            self.tris.host(),
-            self.hits.host(),
-            self.materials.host(),
-            self.lights.host(),
-            &mut self.paths.host_store(),
-            &mut self.shadow_rays.host_store(),
-            &mut self.terms.host_store(),
-        )
+        // SAFETY: called by the native runtime during the dispatch of this pass, which holds
+        // its bindings; item t reads and writes only its own elements of what it writes.
+        unsafe {
+            render::path_step(
+                t,
+                &self.params,
+                &mut self.rays.host_store(),
+                self.tris.host(),
+                self.hits.host(),
+                self.materials.host(),
+                self.lights.host(),
+                &mut self.paths.host_store(),
+                &mut self.shadow_rays.host_store(),
+                &mut self.terms.host_store(),
+            )
+        }
     }
 }
 
@@ -326,7 +352,11 @@ impl Kernel for Accumulate<'_> {
         self.params.count
     }
     fn run(&self, t: u32) {
-        render::accumulate(t, &self.params, self.terms.host(), self.occluded.host(), &mut self.paths.host_store(), &mut self.radiance.host_store())
+        // SAFETY: called by the native runtime during the dispatch of this pass, which holds
+        // its bindings; item t reads and writes only its own elements of what it writes.
+        unsafe {
+            render::accumulate(t, &self.params, self.terms.host(), self.occluded.host(), &mut self.paths.host_store(), &mut self.radiance.host_store())
+        }
     }
 }
 
@@ -356,6 +386,10 @@ impl Kernel for RngFill<'_> {
         self.params.count
     }
     fn run(&self, t: u32) {
-        render::rng_fill(t, &self.params, &mut self.out.host_store())
+        // SAFETY: called by the native runtime during the dispatch of this pass, which holds
+        // its bindings; item t reads and writes only its own elements of what it writes.
+        unsafe {
+            render::rng_fill(t, &self.params, &mut self.out.host_store())
+        }
     }
 }

@@ -154,6 +154,14 @@ impl<'r> Tracer<'r> {
         lists: Option<&'a LeafLists>,
     ) -> Result<Vec<Box<dyn Kernel + 'a>>> {
         self.check(accel)?;
+        if count > rays.len() || count > out.len() || count > u32::MAX as usize {
+            bail!("a query over {count} rays with {} rays and {} results in its buffers", rays.len(), out.len());
+        }
+        if let (Pipeline::Decomposed { capacity }, Some(l)) = (accel.pipeline, lists) {
+            if l.status.len() < count || l.lists.len() < count * capacity as usize {
+                bail!("leaf-list buffers for {} rays, a query over {count}", l.status.len());
+            }
+        }
         let params = self.params(accel, count);
         let scene = || self.scene_binds();
         Ok(match (accel.structure, accel.grouping, accel.pipeline) {
@@ -210,7 +218,9 @@ impl<'r> Tracer<'r> {
             pool.push(("ray", r.into_raw()));
             pool.push(("result", o.into_raw()));
         }
-        pool.truncate(8);
+        // Keep the newest few.
+        let old = pool.len().saturating_sub(8);
+        pool.drain(..old);
         Ok(out)
     }
 

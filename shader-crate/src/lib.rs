@@ -1,6 +1,7 @@
 //! GPU entry points. Each is a thin wrapper: it declares its bindings, finds its work item and
 //! calls the per-item function in `kdray-shared` (`trace`, `render`), which the host's native
-//! runtime calls too. Parameters are push constants. The host reads every entry point's
+//! runtime calls too. Parameters are push constants (render) or a small read-only storage
+//! buffer named `params` (trace; measured faster there). The host reads every entry point's
 //! name, workgroup size and bindings (number, name, element size, read-only or not) from the
 //! SPIR-V module itself and checks its typed passes against them, so nothing here is listed
 //! again on the host.

@@ -95,8 +95,8 @@ pub const ORDER_SCANLINE: u32 = 0;
 /// 32 an 8×4 half tile (see `camera::pixel`).
 pub const ORDER_TILES: u32 = 1;
 
-/// Push constants of the ray-query kernels (closest / any hit, packets, the decomposed
-/// pipeline): how many rays, the scene box (the structure's root cell) and the leaf-list
+/// Parameters of the ray-query kernels (closest / any hit, packets, the decomposed pipeline;
+/// a small storage buffer, binding `params`): how many rays, the scene box (the structure's root cell) and the leaf-list
 /// capacity of the decomposed pipeline.
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]

@@ -106,7 +106,7 @@ impl<'a> Bed<'a> {
         }
     }
 
-    /// Times the passes that answer `set`'s queries with `accel` on the GPU (one batch).
+    /// Times the passes that answer queries for `rays` with `accel` on the GPU (one batch).
     pub fn time(&self, g: &Gpu, t: &Tracer, accel: Accel, closest: bool, rays: &[Ray], reps: usize) -> Result<crate::gpu::Timing> {
         t.check(accel)?;
         if t.batch_size(accel, rays.len()) < rays.len() {

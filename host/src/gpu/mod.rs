@@ -6,15 +6,14 @@
 //! declaration and the shader is an error naming the kernel and the binding, never a wrong
 //! binding. Pipelines and bind groups are cached; read-backs go through reused staging buffers
 //! and are waited for apart from submission.
-pub mod reflect;
-
-use crate::runtime::{Access, Buffer, Commands, Kernel, Mem, Pending, PendingData, RawBuffer, Runtime};
+use crate::runtime::module::{find_entry, module_info, short_name, spirv_words, validate, Slot};
+use crate::runtime::{reflect, Buffer, Commands, Kernel, Mem, Pending, PendingData, RawBuffer, Runtime};
 use anyhow::{anyhow, bail, Context, Result};
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-static SPIRV: &[u8] = include_bytes!(env!("kdray_shader.spv"));
+static NEXT_GPU: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
 
 /// Longest a single submission may run before we report it as hung. Work is split so that a
 /// submission is far below this on any real device.
@@ -29,59 +28,6 @@ const IDLE: Duration = Duration::from_millis(250);
 /// Largest push-constant block a kernel family may use (Vulkan guarantees 128 bytes).
 const MAX_PARAMS: u32 = 128;
 
-/// The words of the SPIR-V module built from `shader-crate/`, without its source-line
-/// instructions (`OpLine`, `OpNoLine`: debug information only; the build keeps variable names,
-/// which leaves `OpNoLine`s behind, and the module is then word for word what a build without
-/// names gives, apart from the names).
-pub fn spirv_words() -> Vec<u32> {
-    const OP_LINE: u32 = 8;
-    const OP_NO_LINE: u32 = 317;
-    let words: Vec<u32> = SPIRV.chunks_exact(4).map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]])).collect();
-    let mut out = Vec::with_capacity(words.len());
-    out.extend_from_slice(&words[..words.len().min(5)]);
-    let mut i = 5;
-    while i < words.len() {
-        let n = (words[i] >> 16) as usize;
-        if n == 0 || i + n > words.len() {
-            // Malformed: leave the rest as it is (reflection reports it).
-            out.extend_from_slice(&words[i..]);
-            break;
-        }
-        let op = words[i] & 0xffff;
-        if op != OP_LINE && op != OP_NO_LINE {
-            out.extend_from_slice(&words[i..i + n]);
-        }
-        i += n;
-    }
-    out
-}
-
-/// The module's entry points as reflected (parsed once).
-pub fn module_info() -> Result<&'static reflect::Module> {
-    static M: std::sync::OnceLock<Result<reflect::Module, String>> = std::sync::OnceLock::new();
-    M.get_or_init(|| reflect::parse(&spirv_words()).map_err(|e| format!("{e:#}")))
-        .as_ref()
-        .map_err(|e| anyhow!("the built-in SPIR-V module cannot be read: {e}"))
-}
-
-/// The entry point a kernel names: `family::name` in the module (rust-gpu qualifies entry
-/// points by their module), found by its full name or, when unique, by its last segment.
-pub fn find_entry<'m>(m: &'m reflect::Module, name: &str) -> Option<&'m reflect::EntryPoint> {
-    m.entry_point(name).or_else(|| {
-        let suffix = format!("::{name}");
-        let mut it = m.entry_points.iter().filter(|e| e.name.ends_with(&suffix));
-        match (it.next(), it.next()) {
-            (Some(e), None) => Some(e),
-            _ => None,
-        }
-    })
-}
-
-/// The short name of an entry point (without its module path).
-pub fn short_name(full: &str) -> &str {
-    full.rsplit("::").next().unwrap_or(full)
-}
-
 struct Pipeline {
     pipeline: wgpu::ComputePipeline,
     layout: wgpu::BindGroupLayout,
@@ -90,6 +36,7 @@ struct Pipeline {
 
 /// A recorded copy into a staging buffer and the submission that carries it.
 pub(crate) struct Readback {
+    device: u64,
     staging: wgpu::Buffer,
     bytes: u64,
     submission: Mutex<Option<wgpu::SubmissionIndex>>,
@@ -102,6 +49,8 @@ pub struct Gpu {
     pub limits: wgpu::Limits,
     /// Position of the adapter in `adapters()`.
     pub index: usize,
+    /// Unique among the `Gpu`s of the process: buffers and commands carry it.
+    id: u64,
     /// Whether passes can carry timestamp queries (GPU-side kernel times).
     pub timestamps: bool,
     module: wgpu::ShaderModule,
@@ -148,9 +97,23 @@ const NO_ADAPTER: &str =
     "no GPU adapter: wgpu found no Vulkan device (install a Vulkan driver, e.g. Mesa's lavapipe: apt-get install mesa-vulkan-drivers)";
 
 impl Gpu {
-    /// Opens the best Vulkan adapter. Fails with a clear message when there is none.
+    /// Opens the best Vulkan adapter that can run the kernels (trying them best first). Fails
+    /// with a clear message when there is none.
     pub fn new() -> Result<Gpu> {
-        Self::open(0)
+        let list = adapters();
+        if list.is_empty() {
+            bail!(NO_ADAPTER);
+        }
+        let mut first_error = None;
+        for (i, a) in list.into_iter().enumerate() {
+            match Self::with_adapter(a, i) {
+                Ok(g) => return Ok(g),
+                Err(e) => {
+                    first_error.get_or_insert(e);
+                }
+            }
+        }
+        Err(first_error.expect("one adapter was tried"))
     }
 
     /// Opens adapter `index` of `adapters()` (best first).
@@ -239,6 +202,7 @@ impl Gpu {
             info,
             limits,
             index,
+            id: NEXT_GPU.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
             timestamps,
             module,
             pipelines: Mutex::new(HashMap::new()),
@@ -313,11 +277,12 @@ impl Gpu {
         (self as &dyn Runtime).check_size(label, bytes)
     }
 
-    /// The buffer holding parameters `bytes` (made once per distinct value, then reused).
-    fn params_buffer(&self, bytes: &[u8]) -> Result<u64> {
+    /// The buffer holding parameters `bytes` (made once per distinct value, then reused): its
+    /// id and the buffer.
+    fn params_buffer(&self, bytes: &[u8]) -> Result<(u64, wgpu::Buffer)> {
         let mut cache = self.params.lock().expect("params cache");
         if let Some(b) = cache.get(bytes) {
-            return Ok(b.id());
+            return Ok((b.id(), b.gpu().expect("a GPU buffer").clone()));
         }
         if cache.len() >= 1024 {
             // Dropped buffers stay alive while submitted work uses them (wgpu tracks that).
@@ -325,9 +290,34 @@ impl Gpu {
         }
         let b = self.alloc_raw("params", bytes.len() as u64)?;
         self.write_raw(&b, bytes)?;
-        let id = b.id();
+        let out = (b.id(), b.gpu().expect("a GPU buffer").clone());
         cache.insert(bytes.to_vec(), b);
-        Ok(id)
+        Ok(out)
+    }
+
+    /// The encoder of commands recorded for this GPU.
+    fn commands<'c>(&self, c: &'c mut Commands) -> Result<&'c mut wgpu::CommandEncoder> {
+        if c.device != Some(self.id) {
+            bail!("commands of another runtime recorded on {}", self.info.name);
+        }
+        c.encoder.as_mut().ok_or_else(|| anyhow!("commands already submitted"))
+    }
+
+    /// This GPU's buffer of `buf`, or an error naming it.
+    fn own<'b>(&self, buf: &'b RawBuffer) -> Result<&'b wgpu::Buffer> {
+        match (buf.gpu(), buf.device()) {
+            (Some(b), Some(d)) if d == self.id => Ok(b),
+            (Some(_), _) => bail!("buffer '{}' belongs to another GPU", buf.label()),
+            _ => bail!("buffer '{}' is host memory, not this GPU's", buf.label()),
+        }
+    }
+
+    /// Drops cached bind groups that name dropped buffers (so their memory is freed).
+    fn purge_dead(&self, cache: &mut HashMap<(String, Vec<u64>), wgpu::BindGroup>) {
+        let dead: Vec<u64> = std::mem::take(&mut *self.dead.lock().expect("dead buffers"));
+        if !dead.is_empty() {
+            cache.retain(|(_, key), _| !key.iter().any(|id| dead.contains(id)));
+        }
     }
 
     /// The pass's bind group (cached by entry point and buffers), its buffers checked against
@@ -335,35 +325,32 @@ impl Gpu {
     fn bind_group(&self, p: &Pipeline, k: &dyn Kernel) -> Result<wgpu::BindGroup> {
         let host = k.bindings();
         let order = validate(k, &host, &p.info)?;
+        let name = k.entry();
+        for h in &host {
+            if h.buffer.device() != Some(self.id) {
+                bail!("kernel {name}: buffer '{}' belongs to {}, not to this GPU", h.buffer.label(), if h.buffer.device().is_some() { "another GPU" } else { "the native runtime" });
+            }
+        }
         let params = if order.contains(&Slot::Params) { Some(self.params_buffer(k.params())?) } else { None };
         // Buffer ids in binding order: the cache key.
         let ids: Vec<u64> = order
             .iter()
             .map(|s| match s {
                 Slot::Host(i) => host[*i].buffer.id(),
-                Slot::Params => params.unwrap_or(0),
+                Slot::Params => params.as_ref().map_or(0, |p| p.0),
             })
             .collect();
         let mut cache = self.bind_groups.lock().expect("bind group cache");
-        let dead: Vec<u64> = std::mem::take(&mut *self.dead.lock().expect("dead buffers"));
-        if !dead.is_empty() {
-            cache.retain(|(_, key), _| !key.iter().any(|id| dead.contains(id)));
-        }
+        self.purge_dead(&mut cache);
         let key = (p.info.name.clone(), ids);
         if let Some(bg) = cache.get(&key) {
             return Ok(bg.clone());
         }
-        let name = k.entry();
-        let pcache = self.params.lock().expect("params cache");
-        let pbuf = match params {
-            Some(_) => pcache.get(k.params()).and_then(|b| b.gpu()),
-            None => None,
-        };
         let mut buffers = Vec::with_capacity(order.len());
         for s in &order {
             buffers.push(match s {
                 Slot::Host(i) => host[*i].buffer.gpu().ok_or_else(|| anyhow!("kernel {name}: buffer '{}' is host memory, not this GPU's", host[*i].buffer.label()))?,
-                Slot::Params => pbuf.ok_or_else(|| anyhow!("kernel {name}: parameter buffer missing"))?,
+                Slot::Params => &params.as_ref().ok_or_else(|| anyhow!("kernel {name}: parameter buffer missing"))?.1,
             });
         }
         let entries: Vec<wgpu::BindGroupEntry> = p
@@ -486,7 +473,7 @@ impl Gpu {
         // before it runs at full speed again (measured on the H100: up to 5× slower before).
         let idle = self.last_timed.lock().expect("timer").is_none_or(|t| t.elapsed() > IDLE);
         if idle && self.info.device_type != wgpu::DeviceType::Cpu {
-            self.warm_up(Duration::from_secs(1))?;
+            self.warm_up(passes, Duration::from_secs(1))?;
         }
         // Warm-up: at least WARM_UP of this work (and 3 runs), so caches are filled before
         // anything is timed; bounded in runs.
@@ -523,23 +510,19 @@ impl Gpu {
         Ok(t)
     }
 
-    /// Keeps the GPU busy for `d` (bounded kernels of 1 M items each), so that clocks and
-    /// power states have settled before a series of measurements: on the H100 the first
-    /// seconds of a process ran the same kernels up to 5× slower.
-    pub fn warm_up(&self, d: Duration) -> Result<()> {
-        let n = 1usize << 20;
-        let rt: &dyn Runtime = self;
-        let out = rt.alloc::<[u32; 4]>("warm-up", n)?;
+    /// Keeps the GPU busy for `d` with `passes` (bounded in runs), so that clocks and power
+    /// states have settled before a series of measurements: on the H100 the first seconds of a
+    /// process ran the same kernels up to 5× slower.
+    pub fn warm_up(&self, passes: &[&dyn Kernel], d: Duration) -> Result<()> {
         let start = std::time::Instant::now();
-        let mut seed = 0;
-        while start.elapsed() < d && seed < 100_000 {
+        let mut runs = 0;
+        while start.elapsed() < d && runs < 100_000 {
             let mut enc = self.encoder();
-            let k = crate::kernels::RngFill::new(n as u32, 0, seed, &out);
-            for _ in 0..4 {
-                self.record(&mut enc, &k, None, None)?;
+            for p in passes {
+                self.record(&mut enc, *p, None, None)?;
             }
             self.submit_wait(enc)?;
-            seed += 1;
+            runs += 1;
         }
         Ok(())
     }
@@ -550,7 +533,7 @@ impl Gpu {
         let mut enc = self.encoder();
         enc.copy_buffer_to_buffer(buf, 0, &staging, 0, bytes);
         let idx = self.queue.submit([enc.finish()]);
-        let r = Readback { staging, bytes, submission: Mutex::new(Some(idx)) };
+        let r = Readback { device: self.id, staging, bytes, submission: Mutex::new(Some(idx)) };
         Ok(bytemuck::pod_collect_to_vec(&self.map(&r)?))
     }
 
@@ -579,94 +562,6 @@ impl Gpu {
     }
 }
 
-/// Where an entry point's binding comes from.
-#[derive(Copy, Clone, Debug, PartialEq, Eq)]
-pub enum Slot {
-    /// The host binding of this index.
-    Host(usize),
-    /// The kernel's parameters (`Kernel::params`), which the runtime puts in a small buffer:
-    /// for entry points that take them as a storage buffer named `params` rather than as
-    /// push constants.
-    Params,
-}
-
-/// The name of the binding that carries a kernel's parameters when they are not push constants.
-pub const PARAMS: &str = "params";
-
-/// Checks a pass against what its entry point declares in the module: parameter size (push
-/// constants, or the `params` buffer), workgroup size, and each binding (matched by name, or
-/// by position where the module carries no names) for element size and access. Returns where
-/// each binding of the entry point comes from. Both runtimes call this, so a wrong declaration
-/// fails natively too (in CI without a GPU), naming the kernel and the binding.
-pub fn validate(k: &dyn Kernel, host: &[crate::runtime::Bind], info: &reflect::EntryPoint) -> Result<Vec<Slot>> {
-    let name = k.entry();
-    let params = k.params().len() as u32;
-    let params_binding = info.bindings.iter().find(|b| b.name.as_deref() == Some(PARAMS) && !host.iter().any(|h| h.name == PARAMS));
-    let declared = match params_binding {
-        Some(b) => b.element_size.unwrap_or(0),
-        None => info.push_constant_size,
-    };
-    if params != declared {
-        bail!("kernel {name}: the host passes {params} bytes of parameters, the shader declares {declared}");
-    }
-    if k.workgroup() != info.workgroup_size[0] || info.workgroup_size[1] != 1 || info.workgroup_size[2] != 1 {
-        bail!("kernel {name}: the host dispatches workgroups of {}, the shader declares {:?}", k.workgroup(), info.workgroup_size);
-    }
-    let by_name = info.bindings.iter().all(|b| b.name.is_some());
-    let mut order = Vec::with_capacity(info.bindings.len());
-    for (pos, b) in info.bindings.iter().enumerate() {
-        if params_binding.is_some_and(|p| p.binding == b.binding) {
-            if !b.read_only {
-                bail!("kernel {name}: its parameter buffer must be read-only");
-            }
-            order.push(Slot::Params);
-            continue;
-        }
-        let i = if by_name {
-            let bn = b.name.as_deref().unwrap_or_default();
-            host.iter().position(|h| h.name == bn).ok_or_else(|| anyhow!("kernel {name}: binding '{bn}' ({}) is not supplied by the host", b.binding))?
-        } else if pos < host.len() {
-            pos
-        } else {
-            bail!("kernel {name}: binding {} is not supplied by the host", b.binding)
-        };
-        let h = &host[i];
-        if let Some(e) = b.element_size {
-            if e != h.elem {
-                bail!("kernel {name}: binding '{}' holds elements of {e} bytes in the shader, {} on the host", h.name, h.elem);
-            }
-        }
-        match (h.access, b.read_only) {
-            (Access::Read, false) => bail!("kernel {name}: binding '{}' is written by the shader but bound for reading", h.name),
-            (Access::Write, true) => bail!("kernel {name}: binding '{}' is read-only in the shader but bound for writing", h.name),
-            _ => {}
-        }
-        order.push(Slot::Host(i));
-    }
-    if by_name {
-        if let Some(extra) = host.iter().find(|h| !info.bindings.iter().any(|b| b.name.as_deref() == Some(h.name))) {
-            if extra.access == Access::Write {
-                bail!("kernel {name}: the host binds '{}' for writing but the shader has no such binding", extra.name);
-            }
-        }
-    } else if host.len() != info.bindings.len() {
-        bail!("kernel {name}: the host binds {} buffers, the shader declares {}", host.len(), info.bindings.len());
-    }
-    Ok(order)
-}
-
-/// Checks a pass natively against the module's entry point of the same name (see `validate`).
-/// A kernel the module does not carry passes: the native runtime instantiates more variants of
-/// a family than the module does (short stacks of 1..=8 entries, the module a few), and those
-/// share their declaration with the family's other members, which are checked.
-pub fn check_kernel(k: &dyn Kernel) -> Result<()> {
-    let m = module_info()?;
-    match find_entry(m, &k.entry()) {
-        Some(info) => validate(k, &k.bindings(), info).map(|_| ()),
-        None => Ok(()),
-    }
-}
-
 impl Runtime for Gpu {
     fn name(&self) -> String {
         self.adapter_line()
@@ -689,11 +584,13 @@ impl Runtime for Gpu {
             // wgpu zero-initialises new buffers.
             mapped_at_creation: false,
         });
-        Ok(RawBuffer::new(label, size, Mem::Gpu { buffer, dead: self.dead.clone() }))
+        // Bind groups of dropped buffers go first, so their memory is freed before more is taken.
+        self.purge_dead(&mut self.bind_groups.lock().expect("bind group cache"));
+        Ok(RawBuffer::new(label, size, Mem::Gpu { buffer, dead: self.dead.clone(), device: self.id }))
     }
 
     fn write_raw(&self, buf: &RawBuffer, data: &[u8]) -> Result<()> {
-        let b = buf.gpu().ok_or_else(|| anyhow!("buffer '{}' is host memory, not this GPU's", buf.label()))?;
+        let b = self.own(buf)?;
         if data.len() as u64 > buf.bytes() {
             bail!("{}: {} bytes written into a buffer of {}", buf.label(), data.len(), buf.bytes());
         }
@@ -708,43 +605,44 @@ impl Runtime for Gpu {
     }
 
     fn begin(&self) -> Commands {
-        Commands { encoder: Some(self.encoder()), readbacks: Vec::new() }
+        Commands { device: Some(self.id), encoder: Some(self.encoder()), readbacks: Vec::new() }
     }
 
     fn clear(&self, c: &mut Commands, buf: &RawBuffer) -> Result<()> {
-        let b = buf.gpu().ok_or_else(|| anyhow!("buffer '{}' is host memory, not this GPU's", buf.label()))?;
-        c.encoder.as_mut().ok_or_else(|| anyhow!("commands of another runtime"))?.clear_buffer(b, 0, None);
+        let b = self.own(buf)?;
+        self.commands(c)?.clear_buffer(b, 0, None);
         Ok(())
     }
 
     fn dispatch(&self, c: &mut Commands, k: &dyn Kernel) -> Result<()> {
-        let enc = c.encoder.as_mut().ok_or_else(|| anyhow!("commands of another runtime"))?;
+        let enc = self.commands(c)?;
         self.record(enc, k, None, None)
     }
 
     fn dispatch_indirect(&self, c: &mut Commands, k: &dyn Kernel, args: &Buffer<[u32; 3]>, index: usize) -> Result<()> {
-        let b = args.raw().gpu().ok_or_else(|| anyhow!("indirect arguments in host memory"))?;
+        let b = self.own(args.raw())?;
         if index >= args.len() {
             bail!("{}: indirect arguments {index} of {}", k.entry(), args.len());
         }
-        let enc = c.encoder.as_mut().ok_or_else(|| anyhow!("commands of another runtime"))?;
+        let enc = self.commands(c)?;
         self.record(enc, k, Some((b, 12 * index as u64)), None)
     }
 
     fn read_back(&self, c: &mut Commands, buf: &RawBuffer, bytes: u64) -> Result<Pending> {
-        let b = buf.gpu().ok_or_else(|| anyhow!("buffer '{}' is host memory, not this GPU's", buf.label()))?;
+        let b = self.own(buf)?;
         let bytes = bytes.min(buf.bytes()).next_multiple_of(4).min(buf.bytes());
         let staging = self.take_staging(bytes);
         if bytes > 0 {
-            c.encoder.as_mut().ok_or_else(|| anyhow!("commands of another runtime"))?.copy_buffer_to_buffer(b, 0, &staging, 0, bytes);
+            self.commands(c)?.copy_buffer_to_buffer(b, 0, &staging, 0, bytes);
         }
-        let r = Arc::new(Readback { staging, bytes, submission: Mutex::new(None) });
+        let r = Arc::new(Readback { device: self.id, staging, bytes, submission: Mutex::new(None) });
         c.readbacks.push(r.clone());
         Ok(Pending { bytes, data: PendingData::Gpu(r) })
     }
 
-    fn submit(&self, c: Commands) -> Result<()> {
-        let enc = c.encoder.ok_or_else(|| anyhow!("commands of another runtime"))?;
+    fn submit(&self, mut c: Commands) -> Result<()> {
+        self.commands(&mut c)?;
+        let enc = c.encoder.take().ok_or_else(|| anyhow!("commands of another runtime"))?;
         let idx = self.queue.submit([enc.finish()]);
         for r in &c.readbacks {
             *r.submission.lock().expect("read-back") = Some(idx.clone());
@@ -755,8 +653,11 @@ impl Runtime for Gpu {
     fn wait(&self, p: Pending) -> Result<Vec<u32>> {
         let r = match p.data {
             PendingData::Gpu(r) => r,
-            PendingData::Ready(v) => return Ok(v),
+            PendingData::Ready(_) => bail!("a read-back of the native runtime waited for on a GPU"),
         };
+        if r.device != self.id {
+            bail!("a read-back of another GPU waited for on this one");
+        }
         let mut out = self.map(&r)?;
         out.truncate(p.bytes as usize / 4);
         if let Ok(r) = Arc::try_unwrap(r) {

@@ -22,28 +22,48 @@ impl Cpu {
         }
     }
 
-    /// Checks a pass before it runs natively: every buffer is host memory, and no buffer is
-    /// bound twice where one binding writes it (the kernel contract the GPU has too), and the
-    /// declaration matches the kernel's SPIR-V entry point.
+    /// Checks a pass before it runs natively: every buffer is host memory, and the declaration
+    /// matches the kernel's SPIR-V entry point (`module::validate`, which also rejects a buffer
+    /// bound twice where one binding writes it).
     fn check(k: &dyn Kernel) -> Result<()> {
-        // The declaration must match the SPIR-V entry point, as on a GPU.
-        crate::gpu::check_kernel(k)?;
-        let b = k.bindings();
-        for (i, x) in b.iter().enumerate() {
-            Self::words(x.buffer)?;
-            for y in &b[i + 1..] {
-                if x.buffer.id() == y.buffer.id() && (x.access == Access::Write || y.access == Access::Write) {
-                    bail!("{}: buffer '{}' is bound as both '{}' and '{}' and written", k.entry(), x.buffer.label(), x.name, y.name);
-                }
-            }
+        super::module::check_kernel(k)?;
+        for b in k.bindings() {
+            Self::words(b.buffer)?;
         }
         Ok(())
     }
 
+    /// Runs `f` holding every binding of `k` (shared where read, exclusive where written).
+    fn holding<R>(k: &dyn Kernel, f: impl FnOnce() -> Result<R>) -> Result<R> {
+        let binds = k.bindings();
+        for (i, b) in binds.iter().enumerate() {
+            if let Err(e) = b.buffer.acquire(b.access == Access::Write) {
+                for a in &binds[..i] {
+                    a.buffer.release(a.access == Access::Write);
+                }
+                return Err(e.context(format!("kernel {}", k.entry())));
+            }
+        }
+        let r = f();
+        for b in &binds {
+            b.buffer.release(b.access == Access::Write);
+        }
+        r
+    }
+
+    /// Runs `f` holding `buf` (exclusive if `write`).
+    fn holding_one<R>(buf: &RawBuffer, write: bool, f: impl FnOnce() -> R) -> Result<R> {
+        buf.acquire(write)?;
+        let r = f();
+        buf.release(write);
+        Ok(r)
+    }
+
     fn run_threads(k: &dyn Kernel, threads: u32) {
         // Chunks of consecutive items per task, like a GPU's workgroups.
-        const CHUNK: u32 = 64;
-        (0..threads.div_ceil(CHUNK)).into_par_iter().for_each(|c| k.run_many(c * CHUNK..threads.min((c + 1) * CHUNK)));
+        const CHUNK: u64 = 64;
+        let n = threads as u64;
+        (0..n.div_ceil(CHUNK)).into_par_iter().for_each(|c| k.run_many((c * CHUNK) as u32..n.min((c + 1) * CHUNK) as u32));
     }
 }
 
@@ -76,46 +96,60 @@ impl Runtime for Cpu {
         if data.len() > n {
             bail!("{}: {} bytes written into a buffer of {}", buf.label(), data.len(), n);
         }
-        // SAFETY: in bounds; no dispatch runs while the native runtime is called.
-        unsafe { std::ptr::copy_nonoverlapping(data.as_ptr(), p, data.len()) };
-        Ok(())
+        // SAFETY: in bounds; the exclusive borrow keeps every other access out.
+        Self::holding_one(buf, true, || unsafe { std::ptr::copy_nonoverlapping(data.as_ptr(), p, data.len()) })
     }
 
     fn begin(&self) -> Commands {
-        Commands { encoder: None, readbacks: Vec::new() }
+        Commands { device: None, encoder: None, readbacks: Vec::new() }
     }
 
     fn clear(&self, _c: &mut Commands, buf: &RawBuffer) -> Result<()> {
         let (p, n) = Self::words(buf)?;
-        // SAFETY: in bounds; no dispatch runs.
-        unsafe { std::ptr::write_bytes(p, 0, n) };
-        Ok(())
+        // SAFETY: in bounds; the exclusive borrow keeps every other access out.
+        Self::holding_one(buf, true, || unsafe { std::ptr::write_bytes(p, 0, n) })
     }
 
-    fn dispatch(&self, _c: &mut Commands, k: &dyn Kernel) -> Result<()> {
+    fn dispatch(&self, c: &mut Commands, k: &dyn Kernel) -> Result<()> {
+        if c.device.is_some() {
+            bail!("commands of a GPU recorded on the native runtime");
+        }
         Self::check(k)?;
-        Self::run_threads(k, k.threads());
-        Ok(())
+        Self::holding(k, || {
+            Self::run_threads(k, k.threads());
+            Ok(())
+        })
     }
 
-    fn dispatch_indirect(&self, _c: &mut Commands, k: &dyn Kernel, args: &Buffer<[u32; 3]>, index: usize) -> Result<()> {
+    fn dispatch_indirect(&self, c: &mut Commands, k: &dyn Kernel, args: &Buffer<[u32; 3]>, index: usize) -> Result<()> {
+        if c.device.is_some() {
+            bail!("commands of a GPU recorded on the native runtime");
+        }
         Self::check(k)?;
-        let Some(g) = args.host().get(index).copied() else {
+        let (p, n) = Self::words(args.raw())?;
+        if (index + 1) * 12 > n {
             bail!("{}: indirect arguments {index} of {}", k.entry(), args.len());
-        };
-        let threads = g[0] as u64 * g[1] as u64 * g[2] as u64 * k.workgroup() as u64;
+        }
+        // SAFETY: in bounds, 4-byte aligned words, read under a shared borrow.
+        let g = Self::holding_one(args.raw(), false, || unsafe { *(p as *const [u32; 3]).add(index) })?;
+        if g[2] != 1 || g[0] > u16::MAX as u32 || g[1] > u16::MAX as u32 {
+            bail!("{}: indirect workgroup counts {g:?}: z must be 1 and x, y at most 65535", k.entry());
+        }
+        let threads = g[0] as u64 * g[1] as u64 * k.workgroup() as u64;
         if threads > u32::MAX as u64 {
             bail!("{}: indirect dispatch of {threads} threads", k.entry());
         }
-        Self::run_threads(k, threads as u32);
-        Ok(())
+        Self::holding(k, || {
+            Self::run_threads(k, threads as u32);
+            Ok(())
+        })
     }
 
     fn read_back(&self, _c: &mut Commands, buf: &RawBuffer, bytes: u64) -> Result<Pending> {
         let (p, n) = Self::words(buf)?;
         let m = (bytes as usize).min(n) / 4;
-        // SAFETY: in bounds, 4-byte aligned words; no dispatch runs.
-        let data = unsafe { std::slice::from_raw_parts(p as *const u32, m) }.to_vec();
+        // SAFETY: in bounds, 4-byte aligned words, read under a shared borrow.
+        let data = Self::holding_one(buf, false, || unsafe { std::slice::from_raw_parts(p as *const u32, m) }.to_vec())?;
         Ok(Pending { bytes: 4 * m as u64, data: PendingData::Ready(data) })
     }
 

@@ -9,20 +9,23 @@
 //! read-backs that are waited for separately, so a GPU keeps working on the next batch while
 //! the host reads the last one. On the CPU every command runs when it is recorded.
 pub mod cpu;
+pub mod module;
+pub mod reflect;
 
 use anyhow::{bail, Result};
 use bytemuck::Pod;
 use std::borrow::Cow;
 use std::cell::UnsafeCell;
 use std::marker::PhantomData;
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 
 pub use cpu::Cpu;
 
 /// Where a buffer's memory lives.
 pub(crate) enum Mem {
-    Gpu { buffer: wgpu::Buffer, dead: Arc<Mutex<Vec<u64>>> },
+    /// `device`: the id of the `Gpu` that made it (buffers never cross devices).
+    Gpu { buffer: wgpu::Buffer, dead: Arc<Mutex<Vec<u64>>>, device: u64 },
     /// Host memory in 4-byte words (every buffer element type is 4-byte aligned). Kernels
     /// running on the native runtime read and write it through raw pointers (see `HostStore`).
     Cpu(Box<[UnsafeCell<u32>]>),
@@ -34,11 +37,17 @@ pub struct RawBuffer {
     bytes: u64,
     label: String,
     pub(crate) mem: Mem,
+    /// Host memory only: who uses it now (0: nobody, n: n readers, `WRITER`: one writer). The
+    /// native runtime takes it for every dispatch, write, clear and read-back, so two threads
+    /// that work on one buffer at once get an error, never a data race.
+    borrow: AtomicU32,
 }
 
-// SAFETY: host memory is written only by the native runtime: by kernels during a dispatch,
-// under the kernel contract (items write disjoint elements, nothing bound for reading is written
-// in the same dispatch), and by the runtime between dispatches.
+const WRITER: u32 = u32::MAX;
+
+// SAFETY: host memory is only read and written by the native runtime under `borrow` (shared for
+// reading, exclusive for writing), and by kernels during a dispatch that holds those borrows,
+// under the kernel contract (items write disjoint elements; see `Buffer::host_store`).
 unsafe impl Sync for RawBuffer {}
 unsafe impl Send for RawBuffer {}
 
@@ -46,7 +55,46 @@ static NEXT_ID: AtomicU64 = AtomicU64::new(1);
 
 impl RawBuffer {
     pub(crate) fn new(label: &str, bytes: u64, mem: Mem) -> RawBuffer {
-        RawBuffer { id: NEXT_ID.fetch_add(1, Ordering::Relaxed), bytes, label: label.to_string(), mem }
+        RawBuffer { id: NEXT_ID.fetch_add(1, Ordering::Relaxed), bytes, label: label.to_string(), mem, borrow: AtomicU32::new(0) }
+    }
+
+    /// Takes the buffer for reading (shared) or writing (exclusive); fails if it is in use
+    /// the other way.
+    pub(crate) fn acquire(&self, write: bool) -> Result<()> {
+        let ok = if write {
+            self.borrow.compare_exchange(0, WRITER, Ordering::Acquire, Ordering::Relaxed).is_ok()
+        } else {
+            let mut n = self.borrow.load(Ordering::Relaxed);
+            loop {
+                if n >= WRITER - 1 {
+                    break false;
+                }
+                match self.borrow.compare_exchange_weak(n, n + 1, Ordering::Acquire, Ordering::Relaxed) {
+                    Ok(_) => break true,
+                    Err(m) => n = m,
+                }
+            }
+        };
+        if !ok {
+            bail!("buffer '{}' is in use by another operation of the native runtime", self.label);
+        }
+        Ok(())
+    }
+
+    pub(crate) fn release(&self, write: bool) {
+        if write {
+            self.borrow.store(0, Ordering::Release);
+        } else {
+            self.borrow.fetch_sub(1, Ordering::Release);
+        }
+    }
+
+    /// The `Gpu` that made this buffer (`None`: host memory).
+    pub(crate) fn device(&self) -> Option<u64> {
+        match &self.mem {
+            Mem::Gpu { device, .. } => Some(*device),
+            Mem::Cpu(_) => None,
+        }
     }
     pub fn id(&self) -> u64 {
         self.id
@@ -107,31 +155,41 @@ impl<T: Pod> Buffer<T> {
         self.raw
     }
 
-    /// The elements, for a kernel's native twin (and only then: GPU buffers have none).
-    pub fn host(&self) -> &[T] {
-        let p = self.raw.host_ptr().expect("kernel ran natively over a GPU buffer (Cpu::dispatch checks this)");
-        // SAFETY: host memory of at least len·size_of::<T>() bytes, 4-byte aligned, and T is
-        // Pod with alignment ≤ 4 (checked when the buffer was made); not written during a
-        // dispatch that reads it (kernel contract).
+    /// The elements, for a kernel's native twin.
+    ///
+    /// # Safety
+    /// Only inside `Kernel::run` of a dispatch on the native runtime that binds this buffer
+    /// for reading (the runtime then holds a shared borrow of it, checked it is host memory,
+    /// and nothing writes it until the dispatch ends).
+    pub unsafe fn host(&self) -> &[T] {
+        let p = self.raw.host_ptr().expect("Cpu::dispatch checks that every binding is host memory");
+        // SAFETY: host memory of at least len·size_of::<T>() bytes (checked when made), 4-byte
+        // aligned, T is Pod with alignment ≤ 4; not written meanwhile (the caller's contract).
         unsafe { std::slice::from_raw_parts(p as *const T, self.len) }
     }
 
     /// Element access for a kernel's native twin that writes this buffer.
-    pub fn host_store(&self) -> HostStore<T> {
-        let p = self.raw.host_ptr().expect("kernel ran natively over a GPU buffer (Cpu::dispatch checks this)");
-        HostStore { ptr: p as *mut T, len: self.len }
+    ///
+    /// # Safety
+    /// Only inside `Kernel::run` of a dispatch on the native runtime that binds this buffer for
+    /// writing (the runtime then holds the exclusive borrow), and each item may read and write
+    /// only elements no other item of the dispatch touches (the GPU's own contract).
+    pub unsafe fn host_store(&self) -> HostStore<'_, T> {
+        let p = self.raw.host_ptr().expect("Cpu::dispatch checks that every binding is host memory");
+        HostStore { ptr: p as *mut T, len: self.len, _buffer: PhantomData }
     }
 }
 
 /// The native form of a buffer a kernel writes: every thread of a dispatch holds one and writes
-/// its own elements (the GPU's contract), through a raw pointer.
+/// its own elements (the GPU's contract), through a raw pointer; it cannot outlive the buffer.
 #[derive(Copy, Clone)]
-pub struct HostStore<T> {
+pub struct HostStore<'a, T> {
     ptr: *mut T,
     len: usize,
+    _buffer: PhantomData<&'a Buffer<T>>,
 }
 
-impl<T: Copy> kdray_shared::kernel::Store<T> for HostStore<T> {
+impl<T: Copy> kdray_shared::kernel::Store<T> for HostStore<'_, T> {
     #[inline(always)]
     fn load(&self, i: usize) -> T {
         assert!(i < self.len, "kernel read element {i} of {}", self.len);
@@ -184,7 +242,8 @@ pub fn write<'a, T: Pod>(name: &'static str, b: &'a Buffer<T>) -> Bind<'a> {
 pub trait Kernel: Sync {
     /// The SPIR-V entry point.
     fn entry(&self) -> Cow<'static, str>;
-    /// The push constants (the family's parameter struct as bytes).
+    /// The family's parameter struct as bytes (push constants, or the `params` buffer where the
+    /// entry point takes one).
     fn params(&self) -> &[u8];
     /// The buffers, by name.
     fn bindings(&self) -> Vec<Bind<'_>>;
@@ -194,7 +253,8 @@ pub trait Kernel: Sync {
     fn workgroup(&self) -> u32 {
         64
     }
-    /// The native twin: runs thread `t`.
+    /// The native twin: runs thread `t` (reading and writing host memory through
+    /// `Buffer::host` / `Buffer::host_store`, whose contracts the implementation keeps).
     fn run(&self, t: u32);
     /// Runs threads `ts` (one dynamic call per chunk of threads on the native runtime).
     fn run_many(&self, ts: std::ops::Range<u32>) {
@@ -206,6 +266,8 @@ pub trait Kernel: Sync {
 
 /// Recorded work of one submission.
 pub struct Commands {
+    /// The `Gpu` these were recorded for (`None`: the native runtime).
+    pub(crate) device: Option<u64>,
     pub(crate) encoder: Option<wgpu::CommandEncoder>,
     pub(crate) readbacks: Vec<Arc<crate::gpu::Readback>>,
 }
@@ -232,7 +294,9 @@ pub trait Runtime: Sync {
     fn max_binding(&self) -> u64;
     /// A zero-filled buffer of `bytes` bytes (never empty: at least 4).
     fn alloc_raw(&self, label: &str, bytes: u64) -> Result<RawBuffer>;
-    /// Copies `data` into `buf` at byte 0.
+    /// Copies `data` into `buf` at byte 0. On a GPU the copy lands before every command of
+    /// the next submission (also ones recorded before the call); natively at once: write
+    /// between submissions, not between recording and submitting.
     fn write_raw(&self, buf: &RawBuffer, data: &[u8]) -> Result<()>;
     fn begin(&self) -> Commands;
     /// Records zero-filling `buf`.
@@ -240,7 +304,8 @@ pub trait Runtime: Sync {
     /// Records one pass over `k.threads()` threads.
     fn dispatch(&self, c: &mut Commands, k: &dyn Kernel) -> Result<()>;
     /// Records one pass whose workgroup counts (x, y, z) are read from `args` at `index` when it
-    /// runs (written by an earlier pass: e.g. a count of survivors).
+    /// runs (written by an earlier pass: e.g. a count of survivors). Kernels number their items
+    /// over x and y: z must be 1, and x and y within the device's workgroup limit.
     fn dispatch_indirect(&self, c: &mut Commands, k: &dyn Kernel, args: &Buffer<[u32; 3]>, index: usize) -> Result<()>;
     /// Records copying the first `bytes` bytes of `buf` back to the host.
     fn read_back(&self, c: &mut Commands, buf: &RawBuffer, bytes: u64) -> Result<Pending>;
@@ -259,7 +324,10 @@ impl dyn Runtime + '_ {
         if std::mem::align_of::<T>() > 4 {
             bail!("{label}: element type aligned to more than 4 bytes");
         }
-        let bytes = (n.max(1) * std::mem::size_of::<T>()).max(4) as u64;
+        let Some(bytes) = n.max(1).checked_mul(std::mem::size_of::<T>()) else {
+            bail!("{label}: {n} elements do not fit in memory");
+        };
+        let bytes = bytes.max(4) as u64;
         self.check_size(label, bytes)?;
         Ok(Buffer::from_raw(self.alloc_raw(label, bytes)?, n))
     }

@@ -146,6 +146,18 @@ impl Scene {
         if self.triangles.is_empty() {
             bail!("{name}: the scene has no triangles");
         }
+        if self.material_names.len() != self.materials.len() {
+            bail!("{name}: {} materials but {} material names", self.materials.len(), self.material_names.len());
+        }
+        // Triangles pushed directly (the field is public) get the checks `add_triangle` makes.
+        for t in &self.triangles {
+            if t.material as usize >= self.materials.len() {
+                bail!("{name}: face {}: material id {} does not exist", t.face, t.material);
+            }
+            if ![t.v0, t.v1, t.v2].iter().flatten().all(|c| c.is_finite()) {
+                bail!("{name}: face {}: vertex coordinates are not finite ({:?}, {:?}, {:?})", t.face, t.v0, t.v1, t.v2);
+            }
+        }
         for (m, mname) in self.materials.iter().zip(&self.material_names) {
             check_color(name, &format!("material '{mname}' diffuse"), m.diffuse)?;
             check_color(name, &format!("material '{mname}' emission"), m.emission)?;

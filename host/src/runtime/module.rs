@@ -1,0 +1,163 @@
+//! The SPIR-V module built from `shader-crate/` and what it declares: every entry point's
+//! name, workgroup size, bindings (by name, with element size and read-only flag) and
+//! push-constant size, read from the module itself (`reflect`). Both runtimes check every pass
+//! against it (`validate`): a host declaration that does not match its shader is an error
+//! naming the kernel and the binding, never a wrong binding.
+use super::{reflect, Access, Bind, Kernel};
+use anyhow::{anyhow, bail, Result};
+
+static SPIRV: &[u8] = include_bytes!(env!("kdray_shader.spv"));
+
+/// The words of the SPIR-V module built from `shader-crate/`, without its source-line
+/// instructions (`OpLine`, `OpNoLine`: debug information only; the build keeps variable names,
+/// which leaves `OpNoLine`s behind, and the module is then word for word what a build without
+/// names gives, apart from the names).
+pub fn spirv_words() -> Vec<u32> {
+    const OP_LINE: u32 = 8;
+    const OP_NO_LINE: u32 = 317;
+    let words: Vec<u32> = SPIRV.chunks_exact(4).map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]])).collect();
+    let mut out = Vec::with_capacity(words.len());
+    out.extend_from_slice(&words[..words.len().min(5)]);
+    let mut i = 5;
+    while i < words.len() {
+        let n = (words[i] >> 16) as usize;
+        if n == 0 || i + n > words.len() {
+            // Malformed: leave the rest as it is (reflection reports it).
+            out.extend_from_slice(&words[i..]);
+            break;
+        }
+        let op = words[i] & 0xffff;
+        if op != OP_LINE && op != OP_NO_LINE {
+            out.extend_from_slice(&words[i..i + n]);
+        }
+        i += n;
+    }
+    out
+}
+
+/// The module's entry points as reflected (parsed once).
+pub fn module_info() -> Result<&'static reflect::Module> {
+    static M: std::sync::OnceLock<Result<reflect::Module, String>> = std::sync::OnceLock::new();
+    M.get_or_init(|| reflect::parse(&spirv_words()).map_err(|e| format!("{e:#}")))
+        .as_ref()
+        .map_err(|e| anyhow!("the built-in SPIR-V module cannot be read: {e}"))
+}
+
+/// The entry point a kernel names: `family::name` in the module (rust-gpu qualifies entry
+/// points by their module), found by its full name or, when unique, by its last segment.
+pub fn find_entry<'m>(m: &'m reflect::Module, name: &str) -> Option<&'m reflect::EntryPoint> {
+    m.entry_point(name).or_else(|| {
+        let suffix = format!("::{name}");
+        let mut it = m.entry_points.iter().filter(|e| e.name.ends_with(&suffix));
+        match (it.next(), it.next()) {
+            (Some(e), None) => Some(e),
+            _ => None,
+        }
+    })
+}
+
+/// The short name of an entry point (without its module path).
+pub fn short_name(full: &str) -> &str {
+    full.rsplit("::").next().unwrap_or(full)
+}
+
+/// Where an entry point's binding comes from.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum Slot {
+    /// The host binding of this index.
+    Host(usize),
+    /// The kernel's parameters (`Kernel::params`), which the runtime puts in a small buffer:
+    /// for entry points that take them as a storage buffer named `params` rather than as
+    /// push constants.
+    Params,
+}
+
+/// The name of the binding that carries a kernel's parameters when they are not push constants.
+pub const PARAMS: &str = "params";
+
+/// Checks a pass against what its entry point declares in the module: parameter size (push
+/// constants, or the `params` buffer), workgroup size, and each binding, matched by name, for
+/// element size and access; that no buffer is bound twice where one binding writes it; and that
+/// the module declares only storage buffers in set 0 with names (the build keeps them). Returns
+/// where each binding of the entry point comes from. Both runtimes call this, so a wrong
+/// declaration fails natively too (in CI without a GPU), naming the kernel and the binding.
+pub fn validate(k: &dyn Kernel, host: &[Bind], info: &reflect::EntryPoint) -> Result<Vec<Slot>> {
+    let name = k.entry();
+    check_aliasing(k, host)?;
+    for b in &info.bindings {
+        if b.name.is_none() || b.set != 0 || b.kind != reflect::BindingKind::StorageBuffer {
+            bail!("kernel {name}: binding {} (set {}) must be a named storage buffer in set 0 (the module was not built by host/build.rs?)", b.binding, b.set);
+        }
+    }
+    let params = k.params().len() as u32;
+    let params_binding = info.bindings.iter().find(|b| b.name.as_deref() == Some(PARAMS) && !host.iter().any(|h| h.name == PARAMS));
+    let declared = match params_binding {
+        Some(b) => b.element_size.unwrap_or(0),
+        None => info.push_constant_size,
+    };
+    if params != declared {
+        bail!("kernel {name}: the host passes {params} bytes of parameters, the shader declares {declared}");
+    }
+    if k.workgroup() != info.workgroup_size[0] || info.workgroup_size[1] != 1 || info.workgroup_size[2] != 1 {
+        bail!("kernel {name}: the host dispatches workgroups of {}, the shader declares {:?}", k.workgroup(), info.workgroup_size);
+    }
+    let mut order = Vec::with_capacity(info.bindings.len());
+    for b in &info.bindings {
+        let bn = b.name.as_deref().unwrap_or_default();
+        if params_binding.is_some_and(|p| p.binding == b.binding) {
+            if !b.read_only {
+                bail!("kernel {name}: its parameter buffer must be read-only");
+            }
+            order.push(Slot::Params);
+            continue;
+        }
+        let i = host.iter().position(|h| h.name == bn).ok_or_else(|| anyhow!("kernel {name}: binding '{bn}' ({}) is not supplied by the host", b.binding))?;
+        let h = &host[i];
+        if let Some(e) = b.element_size {
+            if e != h.elem {
+                bail!("kernel {name}: binding '{}' holds elements of {e} bytes in the shader, {} on the host", h.name, h.elem);
+            }
+        }
+        match (h.access, b.read_only) {
+            (Access::Read, false) => bail!("kernel {name}: binding '{}' is written by the shader but bound for reading", h.name),
+            (Access::Write, true) => bail!("kernel {name}: binding '{}' is read-only in the shader but bound for writing", h.name),
+            _ => {}
+        }
+        order.push(Slot::Host(i));
+    }
+    // A host binding the entry point does not declare is one the shader does not use (rust-gpu
+    // drops unused parameters, e.g. the kd-tree arrays of the brute-force kernels): allowed for
+    // reading, an error for writing (the host would expect results that never come).
+    if let Some(extra) = host.iter().find(|h| h.access == Access::Write && !info.bindings.iter().any(|b| b.name.as_deref() == Some(h.name))) {
+        bail!("kernel {name}: the host binds '{}' for writing but the shader has no such binding", extra.name);
+    }
+    Ok(order)
+}
+
+/// Fails if a pass names a binding twice, or binds one buffer twice where one binding writes it.
+pub fn check_aliasing(k: &dyn Kernel, host: &[Bind]) -> Result<()> {
+    for (i, x) in host.iter().enumerate() {
+        for y in &host[i + 1..] {
+            if x.name == y.name {
+                bail!("kernel {}: binding '{}' is given twice", k.entry(), x.name);
+            }
+            if x.buffer.id() == y.buffer.id() && (x.access == Access::Write || y.access == Access::Write) {
+                bail!("kernel {}: buffer '{}' is bound as both '{}' and '{}' and written", k.entry(), x.buffer.label(), x.name, y.name);
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Checks a pass natively against the module's entry point of the same name (see `validate`).
+/// A kernel the module does not carry passes: the native runtime instantiates more variants of
+/// a family than the module does (short stacks of 1..=8 entries, the module a few), and those
+/// share their declaration with the family's other members, which are checked.
+pub fn check_kernel(k: &dyn Kernel) -> Result<()> {
+    let m = module_info()?;
+    match find_entry(m, &k.entry()) {
+        Some(info) => validate(k, &k.bindings(), info).map(|_| ()),
+        None => check_aliasing(k, &k.bindings()),
+    }
+}
+
