@@ -79,7 +79,7 @@ fn the_shader_crate_never_uses_the_host() {
 const LAYERS: [(&str, &[&str]); 5] = [
     ("runtime", &["host/src/runtime", "host/src/gpu"]),
     ("kernels", &["host/src/kernels.rs"]),
-    ("tracer", &["host/src/tracer.rs", "host/src/accel.rs"]),
+    ("tracer", &["host/src/tracer.rs", "host/src/accel.rs", "host/src/sort.rs"]),
     ("integrator", &["host/src/integrator"]),
     ("commands", &["host/src/bench", "host/src/cli.rs"]),
 ];
@@ -89,7 +89,7 @@ fn names(layer: &str) -> &'static [&'static str] {
     match layer {
         "runtime" => &["crate::runtime", "crate::gpu"],
         "kernels" => &["crate::kernels"],
-        "tracer" => &["crate::tracer", "crate::accel", "crate::Tracer", "crate::Accel"],
+        "tracer" => &["crate::tracer", "crate::accel", "crate::Tracer", "crate::Accel", "crate::sort"],
         "integrator" => &["crate::integrator", "integrator::"],
         _ => &["crate::bench", "crate::cli"],
     }

@@ -361,3 +361,49 @@ fn every_adapter_renders_the_native_image() {
     let e = format!("{:#}", rt.run(&[&kdray::kernels::RngFill::new(8, 0, 1, &host)]).unwrap_err());
     assert!(e.contains("native runtime"), "{e}");
 }
+
+/// The counting sort (histogram with atomics, prefix sum, offsets, scatter with atomic cursors)
+/// on both runtimes: offsets equal to the histogram's prefix sum, every item in its cell exactly
+/// once, keys out of range left out; the same offsets on both.
+#[test]
+fn counting_sort_on_both_runtimes() {
+    use kdray::sort::counting_sort;
+    use kdray::Runtime;
+    let mut runtimes: Vec<&dyn Runtime> = vec![&NATIVE];
+    if let Some(g) = common::gpu() {
+        runtimes.push(g);
+    }
+    for (n, cells) in [(200_003usize, 1000u32), (5000, 1), (3000, 70_000), (0, 7)] {
+        let mut rng = Rng::new(41, n as u32);
+        // Skewed keys (many in few cells), and one in a hundred out of range.
+        let keys: Vec<u32> = (0..n)
+            .map(|_| {
+                let u = rng.next_f32();
+                if rng.next_f32() < 0.01 { cells + rng.next_u32() % 5 } else { ((u * u * cells as f32) as u32).min(cells - 1) }
+            })
+            .collect();
+        let mut want = vec![Vec::new(); cells as usize];
+        for (i, k) in keys.iter().enumerate() {
+            if *k < cells {
+                want[*k as usize].push(i as u32);
+            }
+        }
+        let mut want_offsets = vec![0u32];
+        for c in &want {
+            want_offsets.push(want_offsets.last().unwrap() + c.len() as u32);
+        }
+        let mut all = Vec::new();
+        for rt in &runtimes {
+            let (offsets, order) = counting_sort(*rt, &keys, cells).unwrap();
+            assert_eq!(offsets, want_offsets, "{}: {n} keys, {cells} cells: offsets", rt.name());
+            assert_eq!(order.len(), *want_offsets.last().unwrap() as usize);
+            for (c, items) in want.iter().enumerate() {
+                let mut got = order[offsets[c] as usize..offsets[c + 1] as usize].to_vec();
+                got.sort_unstable();
+                assert_eq!(&got, items, "{}: cell {c}", rt.name());
+            }
+            all.push(offsets);
+        }
+        assert!(all.windows(2).all(|w| w[0] == w[1]));
+    }
+}

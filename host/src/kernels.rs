@@ -12,7 +12,7 @@ use kdray_shared::kdtree::{KdNode, KdTree, LeafRef, PacketTraversal, Traversal, 
 use kdray_shared::query::{AnyHit, Answer, Closest, Query};
 use kdray_shared::brute::BruteForce;
 use kdray_shared::trace::{self, Brute, Kd};
-use kdray_shared::{render, Hit, ItemParams, Light, Material, PathState, Ray, RenderParams, ShadeTerms, TraceParams, Triangle};
+use kdray_shared::{render, sort, Hit, ItemParams, Light, Material, PathState, Ray, RenderParams, ShadeTerms, SortParams, TraceParams, Triangle};
 use std::borrow::Cow;
 use std::marker::PhantomData;
 
@@ -391,5 +391,115 @@ impl Kernel for RngFill<'_> {
         unsafe {
             render::rng_fill(t, &self.params, &mut self.out.host_store())
         }
+    }
+}
+
+/// Counting sort, pass 1: the histogram of keys (`sort::count_keys`).
+pub struct CountKeys<'a> {
+    pub params: SortParams,
+    pub keys: &'a Buffer<u32>,
+    pub counts: &'a Buffer<u32>,
+}
+
+impl Kernel for CountKeys<'_> {
+    fn entry(&self) -> Cow<'static, str> {
+        "count_keys".into()
+    }
+    fn params(&self) -> &[u8] {
+        bytemuck::bytes_of(&self.params)
+    }
+    fn bindings(&self) -> Vec<Bind<'_>> {
+        vec![read("keys", self.keys), write("counts", self.counts)]
+    }
+    fn threads(&self) -> u32 {
+        self.params.count
+    }
+    fn run(&self, t: u32) {
+        // SAFETY: called by the native runtime during the dispatch of this pass, which holds
+        // its bindings; items add to `counts` atomically only.
+        unsafe { sort::count_keys(t, &self.params, self.keys.host(), &mut self.counts.host_store()) }
+    }
+}
+
+/// Counting sort, pass 2: one step of the prefix sum over the cells (`sort::scan_step`).
+pub struct ScanStep<'a> {
+    pub params: SortParams,
+    pub input: &'a Buffer<u32>,
+    pub output: &'a Buffer<u32>,
+}
+
+impl Kernel for ScanStep<'_> {
+    fn entry(&self) -> Cow<'static, str> {
+        "scan_step".into()
+    }
+    fn params(&self) -> &[u8] {
+        bytemuck::bytes_of(&self.params)
+    }
+    fn bindings(&self) -> Vec<Bind<'_>> {
+        vec![read("input", self.input), write("output", self.output)]
+    }
+    fn threads(&self) -> u32 {
+        self.params.cells
+    }
+    fn run(&self, t: u32) {
+        // SAFETY: called by the native runtime during the dispatch of this pass, which holds
+        // its bindings; item t writes output[t] only.
+        unsafe { sort::scan_step(t, &self.params, self.input.host(), &mut self.output.host_store()) }
+    }
+}
+
+/// Counting sort, pass 3: cell offsets and scatter cursors (`sort::exclusive`).
+pub struct ExclusiveOffsets<'a> {
+    pub params: SortParams,
+    pub inclusive: &'a Buffer<u32>,
+    pub offsets: &'a Buffer<u32>,
+    pub cursor: &'a Buffer<u32>,
+}
+
+impl Kernel for ExclusiveOffsets<'_> {
+    fn entry(&self) -> Cow<'static, str> {
+        "exclusive_offsets".into()
+    }
+    fn params(&self) -> &[u8] {
+        bytemuck::bytes_of(&self.params)
+    }
+    fn bindings(&self) -> Vec<Bind<'_>> {
+        vec![read("inclusive", self.inclusive), write("offsets", self.offsets), write("cursor", self.cursor)]
+    }
+    fn threads(&self) -> u32 {
+        self.params.cells + 1
+    }
+    fn run(&self, t: u32) {
+        // SAFETY: called by the native runtime during the dispatch of this pass, which holds
+        // its bindings; item t writes offsets[t] and cursor[t] only.
+        unsafe { sort::exclusive(t, &self.params, self.inclusive.host(), &mut self.offsets.host_store(), &mut self.cursor.host_store()) }
+    }
+}
+
+/// Counting sort, pass 4: every item to its slot (`sort::scatter`).
+pub struct ScatterKeys<'a> {
+    pub params: SortParams,
+    pub keys: &'a Buffer<u32>,
+    pub cursor: &'a Buffer<u32>,
+    pub order: &'a Buffer<u32>,
+}
+
+impl Kernel for ScatterKeys<'_> {
+    fn entry(&self) -> Cow<'static, str> {
+        "scatter_keys".into()
+    }
+    fn params(&self) -> &[u8] {
+        bytemuck::bytes_of(&self.params)
+    }
+    fn bindings(&self) -> Vec<Bind<'_>> {
+        vec![read("keys", self.keys), write("cursor", self.cursor), write("order", self.order)]
+    }
+    fn threads(&self) -> u32 {
+        self.params.count
+    }
+    fn run(&self, t: u32) {
+        // SAFETY: called by the native runtime during the dispatch of this pass, which holds
+        // its bindings; cursors are taken atomically, so every item writes its own slot.
+        unsafe { sort::scatter(t, &self.params, self.keys.host(), &mut self.cursor.host_store(), &mut self.order.host_store()) }
     }
 }

@@ -15,6 +15,7 @@ pub mod kdtree;
 pub mod kernels;
 pub mod runtime;
 pub mod scene;
+pub mod sort;
 pub mod tracer;
 
 pub use accel::Accel;

@@ -9,7 +9,7 @@
 //! Work items are numbered over a 2D grid of workgroups so a dispatch can exceed the 65 535-
 //! workgroup limit of one dimension: `item = x + y · (groups_x · WORKGROUP)`.
 //!
-//! Kernel families are cargo features (`trace`, `render`; all on by default), so a user can
+//! Kernel families are cargo features (`trace`, `render`, `sort`; all on by default), so a user can
 //! build a module with only what they need. The crate also builds for the host (as a normal
 //! library), where the entry points are plain functions that unit tests call.
 #![cfg_attr(target_arch = "spirv", no_std)]
@@ -18,11 +18,15 @@
 mod trace;
 #[cfg(feature = "render")]
 mod render;
+#[cfg(feature = "sort")]
+mod sort;
 
 #[cfg(feature = "trace")]
 pub use trace::*;
 #[cfg(feature = "render")]
 pub use render::*;
+#[cfg(feature = "sort")]
+pub use sort::*;
 
 use spirv_std::glam::UVec3;
 

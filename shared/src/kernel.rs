@@ -33,3 +33,21 @@ impl<T: Copy> Store<T> for [T] {
         <[T]>::len(self)
     }
 }
+
+/// Atomic addition on a buffer's elements, for counters that many items share (a counting
+/// sort's histogram and cursors). The shader crate implements it with `OpAtomicIAdd`, the
+/// native runtime with `AtomicU32`; a plain `&mut [u32]` (one thread owns it) adds directly.
+pub trait AtomicStore {
+    /// Adds `v` to element `i` and returns the value before, atomically.
+    fn atomic_add(&mut self, i: usize, v: u32) -> u32;
+}
+
+#[cfg(not(target_arch = "spirv"))]
+impl AtomicStore for [u32] {
+    #[inline(always)]
+    fn atomic_add(&mut self, i: usize, v: u32) -> u32 {
+        let old = self[i];
+        self[i] = old.wrapping_add(v);
+        old
+    }
+}

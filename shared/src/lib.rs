@@ -17,6 +17,7 @@ pub mod render;
 pub mod rng;
 pub mod shade;
 mod sizes;
+pub mod sort;
 pub mod stats;
 pub mod trace;
 pub mod triangle;

@@ -130,6 +130,17 @@ pub struct RenderParams {
     pub camera: Camera,
 }
 
+/// Push constants of the counting sort's kernels (`sort`): items, cells, and the distance of a
+/// scan step.
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct SortParams {
+    pub count: u32,
+    pub cells: u32,
+    pub step: u32,
+    pub _pad: u32,
+}
+
 /// Push constants of simple per-item kernels (`rng_fill`).
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]

@@ -27,6 +27,7 @@ layout! {
     crate::pod::TraceParams => 48,
     crate::pod::RenderParams => 96,
     crate::pod::ItemParams => 16,
+    crate::pod::SortParams => 16,
     crate::pod::ShadeTerms => 32,
     crate::pod::PathState => 32,
     crate::kdtree::KdNode => 8,

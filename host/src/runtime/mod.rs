@@ -173,7 +173,8 @@ impl<T: Pod> Buffer<T> {
     /// # Safety
     /// Only inside `Kernel::run` of a dispatch on the native runtime that binds this buffer for
     /// writing (the runtime then holds the exclusive borrow), and each item may read and write
-    /// only elements no other item of the dispatch touches (the GPU's own contract).
+    /// only elements no other item of the dispatch touches (the GPU's own contract), except
+    /// through `AtomicStore::atomic_add`, which every item touching that element must use.
     pub unsafe fn host_store(&self) -> HostStore<'_, T> {
         let p = self.raw.host_ptr().expect("Cpu::dispatch checks that every binding is host memory");
         HostStore { ptr: p as *mut T, len: self.len, _buffer: PhantomData }
@@ -205,6 +206,16 @@ impl<T: Copy> kdray_shared::kernel::Store<T> for HostStore<'_, T> {
     #[inline(always)]
     fn len(&self) -> usize {
         self.len
+    }
+}
+
+impl kdray_shared::kernel::AtomicStore for HostStore<'_, u32> {
+    #[inline(always)]
+    fn atomic_add(&mut self, i: usize, v: u32) -> u32 {
+        assert!(i < self.len, "kernel added to element {i} of {}", self.len);
+        // SAFETY: in bounds, 4-byte aligned; every item of the dispatch that touches this
+        // element does so atomically (the `AtomicStore` contract).
+        unsafe { std::sync::atomic::AtomicU32::from_ptr(self.ptr.add(i)) }.fetch_add(v, Ordering::Relaxed)
     }
 }
 
