@@ -276,7 +276,7 @@ fn zero_power_lights_are_skipped_and_the_cdf_is_never_nan() {
         let w = s.add_material("white", Material { diffuse: [0.5; 3], ..Default::default() });
         s.add_triangle(tri, m, &|| "tri".into()).unwrap();
         s.add_triangle(tri.map(|v| v + Vec3::Z), w, &|| "tri".into()).unwrap();
-        s.point_lights.push(PointLight { position: Vec3::new(0.0, 0.0, 2.0), intensity });
+        s.point_lights.push(PointLight { position: Vec3::new(0.0, 0.0, 2.0), intensity, spot: None });
         s
     };
     for (emission, intensity, expect) in [
@@ -312,8 +312,8 @@ fn render_warnings(scene: &std::path::Path) -> (i32, Vec<String>, String) {
 }
 
 #[test]
-fn glass_is_kept_and_warned_about_once() {
-    tmp("glass.mtl", "newmtl clear\nKd 0.9 0.9 0.9\nillum 7\nnewmtl frosted\nKd 0.9 0.9 0.9\nillum 4\nnewmtl unused\nillum 6\n");
+fn glass_is_a_dielectric_with_its_index_and_renders_without_warnings() {
+    tmp("glass.mtl", "newmtl clear\nKd 0.9 0.9 0.9\nillum 7\nNi 1.33\nnewmtl frosted\nKd 0.9 0.9 0.9\nillum 4\nnewmtl unused\nillum 6\n");
     let obj = tmp(
         "glass.obj",
         "mtllib glass.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nusemtl clear\nf 1 2 3\nusemtl frosted\nf 1 3 4\n",
@@ -321,28 +321,71 @@ fn glass_is_kept_and_warned_about_once() {
     let s = scene::load(obj.to_str().unwrap()).unwrap();
     let m = s.materials[s.triangles[0].material as usize];
     assert_eq!(m.flags, kdray_shared::MAT_GLASS, "the flag is kept");
+    assert_eq!(m.ior(), 1.33, "Ni is the index of refraction");
+    assert_eq!(s.materials[s.triangles[1].material as usize].ior(), 1.5, "default index");
     let (code, warnings, err) = render_warnings(&obj);
     assert_eq!(code, 0, "{err}");
-    assert_eq!(warnings.len(), 1, "{err}");
-    let w = &warnings[0];
-    assert!(w.contains("glass.obj: materials 'clear', 'frosted' are glass (dielectric)"), "{w}");
-    assert!(w.contains("dielectrics are not rendered yet and they are shaded as diffuse"), "{w}");
-    assert!(!w.contains("unused"), "only materials that faces use: {w}");
+    assert!(warnings.is_empty(), "{err}");
 
-    // A scene file: its own glass material and the OBJ's, still one line.
     let toml = tmp(
         "glass.toml",
-        "[materials.pane]\ndiffuse = [0.8, 0.8, 0.8]\nglass = true\n[[mesh]]\nfile = \"glass.obj\"\n[[mesh]]\nfile = \"glass.obj\"\nmaterial = \"pane\"\ntranslate = [0, 0, -1]\n[[light]]\npoint = [0, 0, 3]\n",
+        "[materials.pane]\ndiffuse = [0.8, 0.8, 0.8]\nglass = true\nior = 1.7\n[[mesh]]\nfile = \"glass.obj\"\n[[mesh]]\nfile = \"glass.obj\"\nmaterial = \"pane\"\ntranslate = [0, 0, -1]\n[[light]]\npoint = [0, 0, 3]\n",
     );
     let (code, warnings, err) = render_warnings(&toml);
     assert_eq!(code, 0, "{err}");
-    assert_eq!(warnings.len(), 1, "{err}");
-    assert!(warnings[0].starts_with("warning: ") && warnings[0].contains("glass.toml: materials"), "{}", warnings[0]);
-    for name in ["'pane'", "'clear'", "'frosted'"] {
-        assert!(warnings[0].contains(name), "{}", warnings[0]);
-    }
-    // No glass, no warning.
-    let (code, warnings, err) = render_warnings(&tmp("noglass.obj", &format!("{TRI}f 1 2 3\n")));
-    assert_eq!(code, 0, "{err}");
     assert!(warnings.is_empty(), "{err}");
+    let s = scene::load(toml.to_str().unwrap()).unwrap();
+    assert_eq!(s.materials[s.material_id("pane").unwrap() as usize].ior(), 1.7);
+
+    // An index below 1 (or not finite) is an error naming the material.
+    tmp("badni.mtl", "newmtl clear\nillum 7\nNi 0.5\n");
+    let bad = tmp("badni.obj", "mtllib badni.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nusemtl clear\nf 1 2 3\n");
+    let e = format!("{:#}", scene::load(bad.to_str().unwrap()).unwrap_err());
+    assert!(e.contains("'clear' Ni") && e.contains("0.5"), "{e}");
+    let bad = tmp("badior.toml", "[materials.pane]\ndiffuse = [0.8, 0.8, 0.8]\nglass = true\nior = 0.2\n[[mesh]]\nfile = \"glass.obj\"\nmaterial = \"pane\"\n");
+    let e = format!("{:#}", scene::load(bad.to_str().unwrap()).unwrap_err());
+    assert!(e.contains("'pane' ior"), "{e}");
+}
+
+#[test]
+fn spot_lights_need_a_direction_and_a_cone() {
+    let obj = tmp("spotmesh.obj", &format!("{TRI}f 1 2 3\n"));
+    let _ = obj;
+    for (light, want) in [
+        ("point = [0, 0, 3]\ndirection = [0, 0, -1]\n", "needs both 'direction' and 'cone'"),
+        ("point = [0, 0, 3]\ndirection = [0, 0, -1]\ncone = 120.0\n", "cone must be in (0, 90]"),
+        ("point = [0, 0, 3]\ndirection = [0, 0, -1]\ncone = 30.0\nfalloff_start = 40.0\n", "falloff_start in [0, cone]"),
+        ("point = [0, 0, 3]\ndirection = [0, 0, 0]\ncone = 30.0\n", "direction is zero"),
+    ] {
+        let f = tmp("spot.toml", &format!("[[mesh]]\nfile = \"spotmesh.obj\"\n[[light]]\n{light}"));
+        let e = format!("{:#}", scene::load(f.to_str().unwrap()).unwrap_err());
+        assert!(e.contains("light 1") && e.contains(want), "{light}: {e}");
+    }
+    let f = tmp("spot.toml", "[[mesh]]\nfile = \"spotmesh.obj\"\n[[light]]\npoint = [0, 0, 3]\ndirection = [0, 0, -2]\ncone = 30.0\nfalloff_start = 20.0\n");
+    let s = scene::load(f.to_str().unwrap()).unwrap();
+    let l = s.lights();
+    assert_eq!(l[0].kind, kdray_shared::LIGHT_SPOT);
+    assert!((l[0].e1[2] + 1.0).abs() < 1e-6, "the axis is normalised: {:?}", l[0].e1);
+}
+
+#[test]
+fn bad_photon_options_are_one_error_line() {
+    for (args, want) in [
+        (vec!["--emission", "sideways"], "--emission must be"),
+        (vec!["--emission", "coherent:2"], "--emission must be"),
+        (vec!["--passes", "0"], "--passes must be at least 1"),
+        (vec!["--photons", "0"], "at least one photon"),
+        (vec!["--radius=-1"], "--radius must be a positive number"),
+        (vec!["--alpha", "0"], "alpha must be in (0, 1]"),
+        (vec!["--time-limit=-3"], "--time-limit must be"),
+        (vec!["--spp", "0"], "--spp must be"),
+    ] {
+        let mut a = vec!["render", "--device", "cpu", "--size", "8", "--out", "/dev/null"];
+        a.extend(args.iter().copied());
+        let (code, _, err) = kdray(&a, &[]);
+        assert_eq!(code, 1, "{args:?}: {err}");
+        assert_eq!(err.lines().filter(|l| l.starts_with("error:")).count(), 1, "{args:?}: {err}");
+        assert!(err.contains(want), "{args:?}: {err}");
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+    }
 }

@@ -44,7 +44,9 @@ fn cornell_256_closest_and_any_hit_cpu_vs_gpu() {
         .zip(&ch)
         .enumerate()
         .map(|(i, (r, h))| {
-            shade::light_sample(5, i as u32, r, h, &scene.triangles, &scene.materials, &lights, lights.len() as u32).0
+            let p = kdray_shared::RenderParams { seed: 5, light_count: lights.len() as u32, ..Default::default() };
+            let (mut ray, mut path) = (*r, kdray_shared::PathState::start(i as u32));
+            shade::path_step(&p, &mut ray, h, &mut path, &scene.triangles, &scene.materials, &lights).0
         })
         .collect();
     let (ca, ga) = (cpu.any_hits(Accel::BRUTE, &shadow).unwrap(), gpu.any_hits(Accel::BRUTE, &shadow).unwrap());

@@ -2,7 +2,8 @@
 use crate::accel::Accel;
 use crate::gpu::{self, Gpu};
 use crate::image_out::{compare, write_png};
-use crate::integrator::direct;
+use crate::integrator::path::{self, PathOptions};
+use crate::integrator::photon::{self as pm, IndexKind, PhotonMap, PhotonOptions};
 use crate::kdtree::{self, BuildOptions, KdTreeData};
 use crate::runtime::cpu::NATIVE;
 use crate::{scene, Runtime, Tracer};
@@ -23,6 +24,31 @@ pub struct Cli {
 pub enum RayOrderArg {
     Scanline,
     Tiles,
+}
+
+#[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
+pub enum IntegratorArg {
+    /// One shadow ray per pixel centre (no indirect light).
+    Direct,
+    /// Path tracing with next-event estimation (the reference).
+    Path,
+    /// Progressive photon mapping: direct light by shadow rays, indirect from photons.
+    Photon,
+}
+
+#[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
+pub enum IndexArg {
+    /// Hashed uniform grid of cell size 2r.
+    Grid,
+    /// The geometry kd-tree's leaves subdivided to about 2r (Frolov & Ignatenko).
+    Kd,
+}
+
+#[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
+pub enum FilterArg {
+    Constant,
+    Cone,
+    Epanechnikov,
 }
 
 #[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
@@ -90,7 +116,8 @@ impl BuildArgs {
 
 #[derive(Subcommand)]
 pub enum Command {
-    /// Render a scene to PNG: primary rays, one shadow ray per pixel, Lambert shading.
+    /// Render a scene to PNG (and PFM, linear HDR): progressive photon mapping by default,
+    /// path tracing or direct lighting on request.
     Render {
         /// `cornell` (built in), a .obj file or a .toml scene file.
         #[arg(long, default_value = "cornell")]
@@ -131,17 +158,75 @@ pub enum Command {
         /// Leaf-list entries per ray of the decomposed pipeline.
         #[arg(long, default_value_t = crate::accel::DEFAULT_LEAF_CAPACITY)]
         leaf_capacity: u32,
-        /// Mirror reflections followed per pixel (only scenes with mirrors trace them).
-        #[arg(long, default_value_t = 4)]
-        bounces: u32,
+        /// Bounces of eye paths (specular ones for direct and photon; all for path); default
+        /// 4 (direct), 16 (photon), 32 (path).
+        #[arg(long)]
+        bounces: Option<u32>,
+        /// How light is computed.
+        #[arg(long, value_enum, default_value = "photon")]
+        integrator: IntegratorArg,
+        /// Samples per pixel (path; default 64), or eye samples per pixel and pass (photon;
+        /// default 1).
+        #[arg(long)]
+        spp: Option<u32>,
+        /// Photons per pass (photon); default 2^20 on a GPU, 2^18 on the CPU.
+        #[arg(long)]
+        photons: Option<u32>,
+        /// Passes (photon): each traces new photons and one eye sample per pixel.
+        #[arg(long, default_value_t = 16)]
+        passes: u32,
+        /// Stop after the pass that ends past this many seconds (photon).
+        #[arg(long)]
+        time_limit: Option<f64>,
+        /// The first pass's gather radius in scene units (photon); default: about 50 photons
+        /// per gather.
+        #[arg(long)]
+        radius: Option<f32>,
+        /// Radius reduction per pass, r²ᵢ₊₁ = r²ᵢ (i + α)/(i + 1) (photon); 1 keeps it fixed.
+        #[arg(long, default_value_t = 2.0 / 3.0)]
+        alpha: f32,
+        /// The photon index (photon).
+        #[arg(long, value_enum, default_value = "grid")]
+        photon_index: IndexArg,
+        /// Photon emission (photon): `coherent` (groups of 32 sharing one sample, lattice
+        /// offsets), `coherent:S` (offsets scaled by S in (0, 1]) or `independent`.
+        #[arg(long, default_value = "coherent")]
+        emission: String,
+        /// Direct light from the photon map too (the paper's way), not by shadow rays.
+        #[arg(long)]
+        photon_direct: bool,
+        /// Gather kernel (photon).
+        #[arg(long, value_enum, default_value = "constant")]
+        filter: FilterArg,
         #[command(flatten)]
         build: BuildArgs,
+    },
+    /// Write the scene for another renderer: `--mitsuba DIR` (Mitsuba 3 XML + PLY meshes).
+    Export {
+        #[arg(long, default_value = "cornell")]
+        scene: String,
+        #[arg(long)]
+        mitsuba: PathBuf,
+        /// Image width and height in pixels.
+        #[arg(long, default_value_t = 512)]
+        size: u32,
+        /// Mitsuba's max_depth (path vertices; 65 as in the anchor).
+        #[arg(long, default_value_t = 65)]
+        max_depth: u32,
+    },
+    /// Error of an image against a reference (PFM files): RMSE of the displayed images
+    /// (radiance clamped at 1) divided by the reference's mean, and relMSE.
+    Error {
+        image: PathBuf,
+        reference: PathBuf,
     },
     /// List the GPU adapters wgpu sees.
     Adapters {
         /// Also compile every kernel on the best adapter, naming each before its compilation.
         #[arg(long)]
         compile: bool,
+        /// With --compile: only the entry points whose names contain one of these.
+        only: Vec<String>,
     },
     /// Benchmarks: writes CSV and Markdown tables and PNG plots into --out.
     Bench {
@@ -186,7 +271,26 @@ fn progress(label: &str) -> ProgressBar {
 
 pub fn run(cli: Cli) -> Result<()> {
     match cli.command {
-        Command::Adapters { compile } => {
+        Command::Export { scene, mitsuba, size, max_depth } => {
+            if size == 0 || size > 16384 {
+                bail!("--size must be between 1 and 16384, got {size}");
+            }
+            let s = scene::load(&scene)?;
+            let p = scene::mitsuba::export(&s, &mitsuba, size, size, max_depth)?;
+            println!("wrote {}", p.display());
+            Ok(())
+        }
+        Command::Error { image, reference } => {
+            let (w, h, a) = crate::image_out::read_pfm(&image)?;
+            let (w2, h2, b) = crate::image_out::read_pfm(&reference)?;
+            if (w, h) != (w2, h2) {
+                bail!("{} is {w}x{h} but {} is {w2}x{h2}", image.display(), reference.display());
+            }
+            let e = crate::image_out::image_error(&a, &b);
+            println!("relative RMSE {:.4} % (clamped at 1, / reference mean), relMSE {:.3e}, mean {:.5} vs {:.5}", e.rel_rmse * 100.0, e.rel_mse, e.mean, e.reference_mean);
+            Ok(())
+        }
+        Command::Adapters { compile, only } => {
             let list = gpu::adapters();
             if list.is_empty() {
                 bail!("no GPU adapter: wgpu found no Vulkan device");
@@ -197,6 +301,9 @@ pub fn run(cli: Cli) -> Result<()> {
             if compile {
                 let g = Gpu::new()?;
                 for e in &crate::runtime::module::module_info()?.entry_points {
+                    if !only.is_empty() && !only.iter().any(|o| e.name.contains(o.as_str())) {
+                        continue;
+                    }
                     use std::io::Write as _;
                     print!("compiling {} ... ", crate::runtime::module::short_name(&e.name));
                     std::io::stdout().flush()?;
@@ -256,13 +363,42 @@ pub fn run(cli: Cli) -> Result<()> {
             ray_order,
             leaf_capacity,
             bounces,
+            integrator,
+            spp,
+            photons,
+            passes,
+            time_limit,
+            radius,
+            alpha,
+            photon_index,
+            emission,
+            photon_direct,
+            filter,
             build,
         } => {
             let opts = build.options()?;
             let accel = render_accel(traversal.as_deref(), packets, pipeline, leaf_capacity)?;
+            let bounces = bounces.unwrap_or(match integrator {
+                IntegratorArg::Direct => 4,
+                IntegratorArg::Photon => 16,
+                IntegratorArg::Path => 32,
+            });
             if bounces > 64 {
                 bail!("--bounces must be at most 64, got {bounces}");
             }
+            let spp = spp.unwrap_or(if integrator == IntegratorArg::Path { 64 } else { 1 });
+            if spp == 0 || spp > 1 << 20 {
+                bail!("--spp must be between 1 and 2^20, got {spp}");
+            }
+            if passes == 0 {
+                bail!("--passes must be at least 1");
+            }
+            if let Some(l) = time_limit {
+                if !(l.is_finite() && l > 0.0) {
+                    bail!("--time-limit must be a positive number of seconds");
+                }
+            }
+            let spread = parse_emission(&emission)?;
             if size == 0 || size > 16384 {
                 bail!("--size must be between 1 and 16384, got {size}");
             }
@@ -278,7 +414,8 @@ pub fn run(cli: Cli) -> Result<()> {
                 scene.materials.len(),
                 scene.lights().len()
             );
-            let tree = if accel.needs_tree() { Some(build_tree(&scene, &opts)?) } else { None };
+            let needs_tree = accel.needs_tree() || (integrator == IntegratorArg::Photon && photon_index == IndexArg::Kd);
+            let tree = if needs_tree { Some(build_tree(&scene, &opts)?) } else { None };
             let tree = tree.as_ref();
             let mut cam = scene.camera.to_pod(size, size);
             if ray_order == RayOrderArg::Tiles {
@@ -302,10 +439,56 @@ pub fn run(cli: Cli) -> Result<()> {
             let render = |rt: &dyn Runtime| -> Result<crate::RenderOutput> {
                 let t = Tracer::new(rt, &scene, tree)?;
                 println!("device: {}, traversal {}", t.device_name(), accel.name());
-                let pb = progress("render");
                 let start = Instant::now();
-                let r = direct::render(&t, accel, &cam, seed, bounces, &pb)?;
-                pb.finish_and_clear();
+                let r = match integrator {
+                    IntegratorArg::Direct | IntegratorArg::Path => {
+                        let o = if integrator == IntegratorArg::Direct {
+                            PathOptions::direct(seed, bounces)
+                        } else {
+                            PathOptions::path(seed, bounces, spp)
+                        };
+                        let pb = progress("render");
+                        let r = path::render(&t, accel, &cam, &o, &pb)?;
+                        pb.finish_and_clear();
+                        r
+                    }
+                    IntegratorArg::Photon => {
+                        let o = PhotonOptions {
+                            photons: photons.unwrap_or(if rt.is_native() { 1 << 18 } else { 1 << 20 }),
+                            passes,
+                            time_limit,
+                            radius,
+                            alpha,
+                            index: if photon_index == IndexArg::Kd { IndexKind::Kd } else { IndexKind::Grid },
+                            spread,
+                            photon_direct,
+                            filter: match filter {
+                                FilterArg::Constant => kdray_shared::FILTER_CONSTANT,
+                                FilterArg::Cone => kdray_shared::FILTER_CONE,
+                                FilterArg::Epanechnikov => kdray_shared::FILTER_EPANECHNIKOV,
+                            },
+                            photon_bounces: 16,
+                            caustic_radius: 0.5,
+                            eye_bounces: bounces,
+                            eye_samples: spp,
+                            seed,
+                        };
+                        let mut map = PhotonMap::new(&t, accel, tree, scene.surface_area(), o)?;
+                        let pb = progress_passes();
+                        let (r, s) = pm::render(&mut map, &cam, &pb)?;
+                        pb.finish_and_clear();
+                        println!(
+                            "photon mapping: {} passes × {} photons, {:.1} M photons stored, radius {:.4} → {:.4}, {:.1} M photons/s",
+                            s.passes,
+                            map.o.photons,
+                            s.stored as f64 / 1e6,
+                            map.initial_radius(),
+                            s.last_radius,
+                            s.emitted as f64 / s.seconds / 1e6
+                        );
+                        r
+                    }
+                };
                 let secs = start.elapsed().as_secs_f64();
                 println!(
                     "rendered {size}x{size} in {:.3} s ({:.2} M pixels/s, all passes and transfers)",
@@ -317,6 +500,11 @@ pub fn run(cli: Cli) -> Result<()> {
             let img = render(rt)?;
             write_png(&img, exposure, &out)?;
             println!("wrote {}", out.display());
+            if integrator != IntegratorArg::Direct {
+                let pfm = out.with_extension("pfm");
+                crate::image_out::write_pfm(&img, &pfm)?;
+                println!("wrote {} (linear radiance)", pfm.display());
+            }
             if cmp {
                 if gpu.is_none() {
                     bail!("--compare needs a GPU adapter");
@@ -331,6 +519,29 @@ pub fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
     }
+}
+
+/// The spread of `--emission`: 0 for independent photons.
+fn parse_emission(s: &str) -> Result<f32> {
+    match s {
+        "independent" => Ok(0.0),
+        "coherent" => Ok(1.0),
+        s => match s.strip_prefix("coherent:").map(str::parse::<f32>) {
+            Some(Ok(v)) if v > 0.0 && v <= 1.0 => Ok(v),
+            _ => bail!("--emission must be independent, coherent or coherent:S with S in (0, 1], got '{s}'"),
+        },
+    }
+}
+
+fn progress_passes() -> ProgressBar {
+    let pb = ProgressBar::new(0);
+    pb.set_style(
+        ProgressStyle::with_template("{prefix:>8} [{bar:40}] pass {pos}/{len} {elapsed_precise} {msg}")
+            .expect("valid template")
+            .progress_chars("=> "),
+    );
+    pb.set_prefix("photons");
+    pb
 }
 
 /// The hit-finding method of `render` from its options.

@@ -22,6 +22,86 @@ pub fn write_png(out: &RenderOutput, exposure: f32, path: &Path) -> Result<()> {
     to_rgb8(out, exposure).save(path).with_context(|| format!("cannot write {}", path.display()))
 }
 
+/// Linear radiance as a PFM (portable float map: little-endian RGB f32, bottom row first).
+pub fn write_pfm(out: &RenderOutput, path: &Path) -> Result<()> {
+    let mut bytes = format!("PF\n{} {}\n-1.0\n", out.width, out.height).into_bytes();
+    for y in (0..out.height).rev() {
+        for x in 0..out.width {
+            let c = out.radiance[(y * out.width + x) as usize];
+            for v in &c[..3] {
+                bytes.extend_from_slice(&v.to_le_bytes());
+            }
+        }
+    }
+    std::fs::write(path, bytes).with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// Reads a PFM written by `write_pfm` (3 channels, little-endian): width, height, rows top first.
+pub fn read_pfm(path: &Path) -> Result<(u32, u32, Vec<[f32; 3]>)> {
+    let data = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let mut fields = Vec::new();
+    let mut pos = 0;
+    while fields.len() < 4 && pos < data.len() {
+        while pos < data.len() && data[pos].is_ascii_whitespace() {
+            pos += 1;
+        }
+        let start = pos;
+        while pos < data.len() && !data[pos].is_ascii_whitespace() {
+            pos += 1;
+        }
+        fields.push(String::from_utf8_lossy(&data[start..pos]).into_owned());
+    }
+    pos += 1;
+    let bad = || anyhow::anyhow!("{}: not a little-endian RGB PFM file", path.display());
+    if fields.len() < 4 || fields[0] != "PF" || !fields[3].starts_with('-') {
+        return Err(bad());
+    }
+    let (w, h): (u32, u32) = (fields[1].parse().map_err(|_| bad())?, fields[2].parse().map_err(|_| bad())?);
+    let n = w as usize * h as usize;
+    if data.len() < pos + n * 12 {
+        return Err(bad());
+    }
+    let mut px = vec![[0.0f32; 3]; n];
+    for y in 0..h as usize {
+        for x in 0..w as usize {
+            let o = pos + ((h as usize - 1 - y) * w as usize + x) * 12;
+            let f = |k: usize| f32::from_le_bytes(data[o + 4 * k..o + 4 * k + 4].try_into().unwrap());
+            px[y * w as usize + x] = [f(0), f(1), f(2)];
+        }
+    }
+    Ok((w, h, px))
+}
+
+/// Error of an image against a reference.
+#[derive(Copy, Clone, Debug, Default)]
+pub struct ImageError {
+    /// RMSE of the displayed images (each channel clamped to [0, 1]) divided by the reference's
+    /// displayed mean: the measure the photon-mapping issue and its Mitsuba anchor use.
+    pub rel_rmse: f64,
+    /// Mean over channels of (a − b)² / (b² + 0.01), unclamped.
+    pub rel_mse: f64,
+    pub mean: f64,
+    pub reference_mean: f64,
+}
+
+pub fn image_error(a: &[[f32; 3]], reference: &[[f32; 3]]) -> ImageError {
+    let clamp = |v: f32| if v.is_finite() { v.clamp(0.0, 1.0) as f64 } else { 0.0 };
+    let (mut se, mut rel, mut ma, mut mb) = (0.0, 0.0, 0.0, 0.0);
+    for (x, y) in a.iter().zip(reference) {
+        for c in 0..3 {
+            let (p, q) = (clamp(x[c]), clamp(y[c]));
+            se += (p - q).powi(2);
+            ma += p;
+            mb += q;
+            let (u, v) = (x[c] as f64, y[c] as f64);
+            rel += (u - v).powi(2) / (v * v + 0.01);
+        }
+    }
+    let n = (a.len() * 3).max(1) as f64;
+    let (ma, mb) = (ma / n, mb / n);
+    ImageError { rel_rmse: (se / n).sqrt() / mb.max(1e-12), rel_mse: rel / n, mean: ma, reference_mean: mb }
+}
+
 /// How two renders of the same camera differ.
 #[derive(Clone, Debug, Default)]
 pub struct Comparison {

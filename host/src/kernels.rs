@@ -12,7 +12,11 @@ use kdray_shared::kdtree::{KdNode, KdTree, LeafRef, PacketTraversal, Traversal, 
 use kdray_shared::query::{AnyHit, Answer, Closest, Query};
 use kdray_shared::brute::BruteForce;
 use kdray_shared::trace::{self, Brute, Kd};
-use kdray_shared::{render, sort, Hit, ItemParams, Light, Material, PathState, Ray, RenderParams, ShadeTerms, SortParams, TraceParams, Triangle};
+use kdray_shared::photon::{self, HashGrid, KdCells};
+use kdray_shared::{
+    render, sort, Hit, IndexParams, ItemParams, LeafCells, Light, Material, PathState, Photon, PhotonParams, PhotonPath, Ray, RenderParams,
+    ShadeTerms, SortParams, TraceParams, Triangle,
+};
 use std::borrow::Cow;
 use std::marker::PhantomData;
 
@@ -335,7 +339,6 @@ pub struct Accumulate<'a> {
     pub terms: &'a Buffer<ShadeTerms>,
     pub occluded: &'a Buffer<u32>,
     pub paths: &'a Buffer<PathState>,
-    pub radiance: &'a Buffer<[f32; 4]>,
 }
 
 impl Kernel for Accumulate<'_> {
@@ -346,7 +349,7 @@ impl Kernel for Accumulate<'_> {
         bytemuck::bytes_of(&self.params)
     }
     fn bindings(&self) -> Vec<Bind<'_>> {
-        vec![read("terms", self.terms), read("occluded", self.occluded), write("paths", self.paths), write("radiance", self.radiance)]
+        vec![read("terms", self.terms), read("occluded", self.occluded), write("paths", self.paths)]
     }
     fn threads(&self) -> u32 {
         self.params.count
@@ -355,8 +358,35 @@ impl Kernel for Accumulate<'_> {
         // SAFETY: called by the native runtime during the dispatch of this pass, which holds
         // its bindings; item t reads and writes only its own elements of what it writes.
         unsafe {
-            render::accumulate(t, &self.params, self.terms.host(), self.occluded.host(), &mut self.paths.host_store(), &mut self.radiance.host_store())
+            render::accumulate(t, &self.params, self.terms.host(), self.occluded.host(), &mut self.paths.host_store())
         }
+    }
+}
+
+/// Adds every path's radiance to the film (`render::film`).
+pub struct Film<'a> {
+    pub params: RenderParams,
+    pub paths: &'a Buffer<PathState>,
+    pub radiance: &'a Buffer<[f32; 4]>,
+}
+
+impl Kernel for Film<'_> {
+    fn entry(&self) -> Cow<'static, str> {
+        "film".into()
+    }
+    fn params(&self) -> &[u8] {
+        bytemuck::bytes_of(&self.params)
+    }
+    fn bindings(&self) -> Vec<Bind<'_>> {
+        vec![read("paths", self.paths), write("radiance", self.radiance)]
+    }
+    fn threads(&self) -> u32 {
+        self.params.count
+    }
+    fn run(&self, t: u32) {
+        // SAFETY: called by the native runtime during the dispatch of this pass, which holds
+        // its bindings; item t writes radiance[t] only.
+        unsafe { render::film(t, &self.params, self.paths.host(), &mut self.radiance.host_store()) }
     }
 }
 
@@ -501,5 +531,224 @@ impl Kernel for ScatterKeys<'_> {
         // SAFETY: called by the native runtime during the dispatch of this pass, which holds
         // its bindings; cursors are taken atomically, so every item writes its own slot.
         unsafe { sort::scatter(t, &self.params, self.keys.host(), &mut self.cursor.host_store(), &mut self.order.host_store()) }
+    }
+}
+
+/// Photons leave the lights (`photon::emit`).
+pub struct EmitPhotons<'a> {
+    pub params: PhotonParams,
+    pub lights: &'a Buffer<Light>,
+    pub rays: &'a Buffer<Ray>,
+    pub paths: &'a Buffer<PhotonPath>,
+}
+
+impl Kernel for EmitPhotons<'_> {
+    fn entry(&self) -> Cow<'static, str> {
+        "emit_photons".into()
+    }
+    fn params(&self) -> &[u8] {
+        bytemuck::bytes_of(&self.params)
+    }
+    fn bindings(&self) -> Vec<Bind<'_>> {
+        vec![read("lights", self.lights), write("rays", self.rays), write("paths", self.paths)]
+    }
+    fn threads(&self) -> u32 {
+        self.params.count
+    }
+    fn run(&self, t: u32) {
+        // SAFETY: called by the native runtime during the dispatch of this pass, which holds
+        // its bindings; item t writes rays[t] and paths[t] only.
+        unsafe { photon::emit(t, &self.params, self.lights.host(), &mut self.rays.host_store(), &mut self.paths.host_store()) }
+    }
+}
+
+/// One bounce of every photon: store, continue or absorb (`photon::bounce`).
+pub struct PhotonBounce<'a> {
+    pub params: PhotonParams,
+    pub rays: &'a Buffer<Ray>,
+    pub hits: &'a Buffer<Hit>,
+    pub tris: &'a Buffer<Triangle>,
+    pub materials: &'a Buffer<Material>,
+    pub paths: &'a Buffer<PhotonPath>,
+    pub photons: &'a Buffer<Photon>,
+    pub counter: &'a Buffer<u32>,
+}
+
+impl Kernel for PhotonBounce<'_> {
+    fn entry(&self) -> Cow<'static, str> {
+        "photon_bounce".into()
+    }
+    fn params(&self) -> &[u8] {
+        bytemuck::bytes_of(&self.params)
+    }
+    fn bindings(&self) -> Vec<Bind<'_>> {
+        vec![
+            write("rays", self.rays),
+            read("hits", self.hits),
+            read("tris", self.tris),
+            read("materials", self.materials),
+            write("paths", self.paths),
+            write("photons", self.photons),
+            write("counter", self.counter),
+        ]
+    }
+    fn threads(&self) -> u32 {
+        self.params.count
+    }
+    fn run(&self, t: u32) {
+        // SAFETY: called by the native runtime during the dispatch of this pass, which holds
+        // its bindings; item t writes its own ray and path, the photon slot it took from the
+        // counter atomically, and adds to the counter atomically.
+        unsafe {
+            photon::bounce(
+                t,
+                &self.params,
+                &mut self.rays.host_store(),
+                self.hits.host(),
+                self.tris.host(),
+                self.materials.host(),
+                &mut self.paths.host_store(),
+                &mut self.photons.host_store(),
+                &mut self.counter.host_store(),
+            )
+        }
+    }
+}
+
+/// Which photon index the index and gather kernels use: the hashed grid, or the kd-tree's
+/// leaves (its nodes and per-node cell table).
+#[derive(Copy, Clone)]
+pub enum IndexBinds<'a> {
+    Grid,
+    Kd { nodes: &'a Buffer<kdray_shared::kdtree::KdNode>, leaves: &'a Buffer<LeafCells> },
+}
+
+impl<'a> IndexBinds<'a> {
+    fn suffix(&self) -> &'static str {
+        match self {
+            IndexBinds::Grid => "grid",
+            IndexBinds::Kd { .. } => "kd",
+        }
+    }
+    fn binds(&self) -> Vec<Bind<'a>> {
+        match *self {
+            IndexBinds::Grid => vec![],
+            IndexBinds::Kd { nodes, leaves } => vec![read("nodes", nodes), read("leaves", leaves)],
+        }
+    }
+}
+
+/// The cell of every stored photon (`photon::keys`).
+pub struct PhotonKeys<'a> {
+    pub params: IndexParams,
+    pub index: IndexBinds<'a>,
+    pub photons: &'a Buffer<Photon>,
+    pub counter: &'a Buffer<u32>,
+    pub keys: &'a Buffer<u32>,
+}
+
+impl Kernel for PhotonKeys<'_> {
+    fn entry(&self) -> Cow<'static, str> {
+        format!("photon_keys_{}", self.index.suffix()).into()
+    }
+    fn params(&self) -> &[u8] {
+        bytemuck::bytes_of(&self.params)
+    }
+    fn bindings(&self) -> Vec<Bind<'_>> {
+        let mut b = vec![read("photons", self.photons), read("counter", self.counter)];
+        b.extend(self.index.binds());
+        b.push(write("keys", self.keys));
+        b
+    }
+    fn threads(&self) -> u32 {
+        self.params.count
+    }
+    fn run(&self, t: u32) {
+        // SAFETY: called by the native runtime during the dispatch of this pass, which holds
+        // its bindings; item t writes keys[t] only.
+        unsafe {
+            let (photons, counter, mut keys) = (self.photons.host(), self.counter.host(), self.keys.host_store());
+            match self.index {
+                IndexBinds::Grid => photon::keys(t, &self.params, &HashGrid::new(&self.params), photons, counter, &mut keys),
+                IndexBinds::Kd { nodes, leaves } => {
+                    let index = KdCells { nodes: nodes.host(), leaves: leaves.host(), cells: self.params.cells };
+                    photon::keys(t, &self.params, &index, photons, counter, &mut keys)
+                }
+            }
+        }
+    }
+}
+
+/// The stored photons in cell order (`photon::permute`).
+pub struct PermutePhotons<'a> {
+    pub params: IndexParams,
+    pub photons: &'a Buffer<Photon>,
+    pub order: &'a Buffer<u32>,
+    pub offsets: &'a Buffer<u32>,
+    pub sorted: &'a Buffer<Photon>,
+}
+
+impl Kernel for PermutePhotons<'_> {
+    fn entry(&self) -> Cow<'static, str> {
+        "permute_photons".into()
+    }
+    fn params(&self) -> &[u8] {
+        bytemuck::bytes_of(&self.params)
+    }
+    fn bindings(&self) -> Vec<Bind<'_>> {
+        vec![read("photons", self.photons), read("order", self.order), read("offsets", self.offsets), write("sorted", self.sorted)]
+    }
+    fn threads(&self) -> u32 {
+        self.params.count
+    }
+    fn run(&self, t: u32) {
+        // SAFETY: called by the native runtime during the dispatch of this pass, which holds
+        // its bindings; item t writes sorted[t] only.
+        unsafe { photon::permute(t, &self.params, self.photons.host(), self.order.host(), self.offsets.host(), &mut self.sorted.host_store()) }
+    }
+}
+
+/// The photon-map estimate at every gather point, added with the path's radiance to the film
+/// (`photon::gather`).
+pub struct Gather<'a> {
+    pub params: IndexParams,
+    pub index: IndexBinds<'a>,
+    pub rays: &'a Buffer<Ray>,
+    pub paths: &'a Buffer<PathState>,
+    pub photons: &'a Buffer<Photon>,
+    pub offsets: &'a Buffer<u32>,
+    pub film: &'a Buffer<[f32; 4]>,
+}
+
+impl Kernel for Gather<'_> {
+    fn entry(&self) -> Cow<'static, str> {
+        format!("gather_{}", self.index.suffix()).into()
+    }
+    fn params(&self) -> &[u8] {
+        bytemuck::bytes_of(&self.params)
+    }
+    fn bindings(&self) -> Vec<Bind<'_>> {
+        let mut b = vec![read("rays", self.rays), read("paths", self.paths), read("photons", self.photons), read("offsets", self.offsets)];
+        b.extend(self.index.binds());
+        b.push(write("film", self.film));
+        b
+    }
+    fn threads(&self) -> u32 {
+        self.params.count
+    }
+    fn run(&self, t: u32) {
+        // SAFETY: called by the native runtime during the dispatch of this pass, which holds
+        // its bindings; item t writes film[t] only.
+        unsafe {
+            let (rays, paths, photons, offsets, mut film) =
+                (self.rays.host(), self.paths.host(), self.photons.host(), self.offsets.host(), self.film.host_store());
+            match self.index {
+                IndexBinds::Grid => photon::gather(t, &self.params, &HashGrid::new(&self.params), rays, paths, photons, offsets, &mut film),
+                IndexBinds::Kd { nodes, leaves } => {
+                    let index = KdCells { nodes: nodes.host(), leaves: leaves.host(), cells: self.params.cells };
+                    photon::gather(t, &self.params, &index, rays, paths, photons, offsets, &mut film)
+                }
+            }
+        }
     }
 }

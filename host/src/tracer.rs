@@ -45,7 +45,8 @@ pub struct Tracer<'r> {
     no_prims: Buffer<u32>,
     scene_bounds: Aabb,
     pub light_count: u32,
-    pub has_mirror: bool,
+    /// Any mirror or glass: only then are specular bounces traced.
+    pub has_specular: bool,
     tri_count: u64,
     /// Buffers of earlier queries, reused by later ones (by label and size).
     pool: std::sync::Mutex<Vec<(&'static str, RawBuffer)>>,
@@ -70,10 +71,15 @@ impl<'r> Tracer<'r> {
             no_prims: rt.alloc("no kd-tree primitives", 1)?,
             scene_bounds: Aabb { min: lo.to_array(), max: hi.to_array() },
             light_count: lights.len() as u32,
-            has_mirror: scene.has_mirror(),
+            has_specular: scene.has_specular(),
             tri_count: scene.triangles.len() as u64,
             pool: std::sync::Mutex::new(Vec::new()),
         })
+    }
+
+    /// The scene's box (min, max).
+    pub fn bounds(&self) -> ([f32; 3], [f32; 3]) {
+        (self.scene_bounds.min, self.scene_bounds.max)
     }
 
     pub fn device_name(&self) -> String {

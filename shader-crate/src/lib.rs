@@ -9,7 +9,7 @@
 //! Work items are numbered over a 2D grid of workgroups so a dispatch can exceed the 65 535-
 //! workgroup limit of one dimension: `item = x + y · (groups_x · WORKGROUP)`.
 //!
-//! Kernel families are cargo features (`trace`, `render`, `sort`; all on by default), so a user can
+//! Kernel families are cargo features (`trace`, `render`, `sort`, `photon`; all on by default), so a user can
 //! build a module with only what they need. The crate also builds for the host (as a normal
 //! library), where the entry points are plain functions that unit tests call.
 #![cfg_attr(target_arch = "spirv", no_std)]
@@ -20,6 +20,8 @@ mod trace;
 mod render;
 #[cfg(feature = "sort")]
 mod sort;
+#[cfg(feature = "photon")]
+mod photon;
 
 #[cfg(feature = "trace")]
 pub use trace::*;
@@ -27,7 +29,10 @@ pub use trace::*;
 pub use render::*;
 #[cfg(feature = "sort")]
 pub use sort::*;
+#[cfg(feature = "photon")]
+pub use photon::*;
 
+use kdray_shared::kernel::AtomicStore;
 use spirv_std::glam::UVec3;
 
 /// Threads per workgroup (`#[spirv(compute(threads(64)))]` on every entry point).
@@ -38,3 +43,25 @@ pub const WORKGROUP: u32 = 64;
 pub fn item(id: UVec3, groups: UVec3) -> u32 {
     id.x + id.y * groups.x * WORKGROUP
 }
+
+/// A storage buffer whose elements many invocations add to (`OpAtomicIAdd`, queue-family scope:
+/// every invocation of a dispatch; device scope would need an extra Vulkan memory-model
+/// capability).
+pub struct Atomics<'a>(pub &'a mut [u32]);
+
+impl AtomicStore for Atomics<'_> {
+    #[inline(always)]
+    fn atomic_add(&mut self, i: usize, v: u32) -> u32 {
+        #[cfg(target_arch = "spirv")]
+        {
+            use spirv_std::memory::{Scope, Semantics};
+            // SAFETY: an in-bounds element of a storage buffer (the index is checked).
+            unsafe { spirv_std::arch::atomic_i_add::<u32, { Scope::QueueFamily as u32 }, { Semantics::NONE.bits() }>(&mut self.0[i], v) }
+        }
+        #[cfg(not(target_arch = "spirv"))]
+        {
+            self.0.atomic_add(i, v)
+        }
+    }
+}
+

@@ -1,4 +1,4 @@
-//! The direct-lighting renderer's entry points (`kdray_shared::render`).
+//! The eye-path entry points (`kdray_shared::render`).
 use kdray_shared::render;
 use kdray_shared::{Hit, ItemParams, Light, Material, PathState, Ray, RenderParams, ShadeTerms, Triangle};
 use spirv_std::glam::UVec3;
@@ -40,9 +40,19 @@ pub fn accumulate(
     #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] terms: &[ShadeTerms],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] occluded: &[u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] paths: &mut [PathState],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] radiance: &mut [[f32; 4]],
 ) {
-    render::accumulate(crate::item(id, groups), params, terms, occluded, paths, radiance);
+    render::accumulate(crate::item(id, groups), params, terms, occluded, paths);
+}
+
+#[spirv(compute(threads(64)))]
+pub fn film(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(num_workgroups)] groups: UVec3,
+    #[spirv(push_constant)] params: &RenderParams,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] paths: &[PathState],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] radiance: &mut [[f32; 4]],
+) {
+    render::film(crate::item(id, groups), params, paths, radiance);
 }
 
 #[spirv(compute(threads(64)))]

@@ -12,6 +12,15 @@ pub fn primary_ray(cam: &Camera, index: u32) -> Ray {
     Ray::new(cam.origin, normalize3(d), 0.0, f32::INFINITY)
 }
 
+/// Ray through point (x + u, y + v) of pixel `index` (u, v in [0, 1)).
+#[inline(always)]
+pub fn jittered_ray(cam: &Camera, index: u32, u: f32, v: f32) -> Ray {
+    let x = (index % cam.width) as f32 + u;
+    let y = (index / cam.width) as f32 + v;
+    let d = add3(add3(cam.top_left, scale3(cam.du, x)), scale3(cam.dv, y));
+    Ray::new(cam.origin, normalize3(d), 0.0, f32::INFINITY)
+}
+
 /// The pixel traced as the `index`-th ray of a frame, in the camera's order (a bijection of
 /// 0..width·height). Tiles: the largest region of whole 8×8 tiles first, tile by tile in rows,
 /// Morton order inside each tile; then the pixels right of it (rows), then those below (rows).

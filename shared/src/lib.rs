@@ -10,6 +10,7 @@ pub mod camera;
 pub mod kdtree;
 pub mod kernel;
 pub mod math;
+pub mod photon;
 pub mod pod;
 pub mod query;
 pub mod ray;

@@ -93,3 +93,74 @@ pub fn length3(a: [f32; 3]) -> f32 {
 pub fn normalize3(a: [f32; 3]) -> [f32; 3] {
     scale3(a, 1.0 / length3(a))
 }
+
+/// `x` of a non-negative finite value rounded down to an integer, as `u32` (saturating).
+#[inline(always)]
+pub fn floor_u32(x: f32) -> u32 {
+    if x >= 4_294_967_040.0 {
+        u32::MAX
+    } else if x > 0.0 {
+        x as u32
+    } else {
+        0
+    }
+}
+
+/// The fractional part of a non-negative `x` below 2^24.
+#[inline(always)]
+pub fn fract_pos(x: f32) -> f32 {
+    x - (floor_u32(x) as f32)
+}
+
+/// (sin 2πu, cos 2πu) for u in [0, 1], from additions and multiplications only, so every
+/// device computes the same values (to rounding): the quadrant from 4u, then Taylor polynomials
+/// on [−π/4, π/4] (truncation below 3·10⁻⁸).
+#[inline(always)]
+pub fn sin_cos_turn(u: f32) -> (f32, f32) {
+    let x = u * 4.0;
+    let q = floor_u32(x + 0.5);
+    let g = (x - q as f32) * core::f32::consts::FRAC_PI_2;
+    let g2 = g * g;
+    let s = g * (1.0 + g2 * (-1.0 / 6.0 + g2 * (1.0 / 120.0 + g2 * (-1.0 / 5040.0 + g2 * (1.0 / 362_880.0)))));
+    let c = 1.0 + g2 * (-0.5 + g2 * (1.0 / 24.0 + g2 * (-1.0 / 720.0 + g2 * (1.0 / 40_320.0))));
+    match q & 3 {
+        0 => (s, c),
+        1 => (c, -s),
+        2 => (-s, -c),
+        _ => (-c, s),
+    }
+}
+
+/// Two unit vectors completing unit `n` to an orthonormal basis (Duff et al. 2017).
+#[inline(always)]
+pub fn basis(n: [f32; 3]) -> ([f32; 3], [f32; 3]) {
+    let sign = select(n[2] >= 0.0, 1.0, -1.0);
+    let a = -1.0 / (sign + n[2]);
+    let b = n[0] * n[1] * a;
+    ([1.0 + sign * n[0] * n[0] * a, sign * b, -sign * n[0]], [b, sign + n[1] * n[1] * a, -n[1]])
+}
+
+/// The direction `n`-hemisphere direction of cosine-weighted sample (u1, u2) (pdf cos θ / π).
+#[inline(always)]
+pub fn cosine_direction(n: [f32; 3], u1: f32, u2: f32) -> [f32; 3] {
+    let r = sqrt(u1);
+    let (s, c) = sin_cos_turn(u2);
+    let z = sqrt((1.0 - u1).max(0.0));
+    let (t, b) = basis(n);
+    add3(add3(scale3(t, r * c), scale3(b, r * s)), scale3(n, z))
+}
+
+/// A direction with `cos θ` to `axis` and azimuth 2πu (for uniform sphere and cone samples).
+#[inline(always)]
+pub fn direction_around(axis: [f32; 3], cos_theta: f32, u: f32) -> [f32; 3] {
+    let sin_theta = sqrt((1.0 - cos_theta * cos_theta).max(0.0));
+    let (s, c) = sin_cos_turn(u);
+    let (t, b) = basis(axis);
+    add3(add3(scale3(t, sin_theta * c), scale3(b, sin_theta * s)), scale3(axis, cos_theta))
+}
+
+/// 2^k as f32 for k in [−126, 127].
+#[inline(always)]
+pub fn exp2i(k: i32) -> f32 {
+    f32::from_bits(((k + 127) as u32) << 23)
+}

@@ -52,15 +52,33 @@ pub struct Material {
     /// `MAT_MIRROR`, `MAT_GLASS` bits.
     pub flags: u32,
     pub emission: [f32; 3],
-    pub _pad: u32,
+    /// Index of refraction of a `MAT_GLASS` material (0: the default, 1.5).
+    pub ior: f32,
+}
+
+impl Material {
+    /// The index of refraction glass uses: `ior`, or 1.5 when unset.
+    #[inline(always)]
+    pub fn ior(&self) -> f32 {
+        if self.ior > 0.0 {
+            self.ior
+        } else {
+            1.5
+        }
+    }
 }
 
 pub const LIGHT_TRIANGLE: u32 = 0;
 pub const LIGHT_POINT: u32 = 1;
+pub const LIGHT_SPOT: u32 = 2;
 
-/// A light to sample for direct illumination. Triangle lights: `p0`, edges `e1`, `e2`,
-/// emitted radiance (two-sided). Point lights: position `p0`, intensity in `emission`.
-/// `cdf` is the running sum of selection probabilities (last light: 1).
+/// A light to sample for direct illumination and to emit photons from. Triangle lights: `p0`,
+/// edges `e1`, `e2`, emitted radiance (front side: e1 × e2), `area`. Point lights: position `p0`,
+/// intensity in `emission`. Spot lights: position `p0`, unit axis `e1`, `e2` = [cos of the
+/// cone's half angle, cos of the angle where the falloff starts, 0], intensity on the axis in
+/// `emission` (falling off smoothly to 0 at the cone's edge, as pbrt-v4's spot light).
+/// `cdf` is the running sum of the direct-light selection probabilities (last light: 1),
+/// `power_cdf` that of photon emission, proportional to power.
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct Light {
@@ -71,7 +89,7 @@ pub struct Light {
     pub e2: [f32; 3],
     pub area: f32,
     pub emission: [f32; 3],
-    pub _pad: u32,
+    pub power_cdf: f32,
 }
 
 /// Pinhole camera: ray through pixel (x, y) has direction `top_left + (x+½)·du + (y+½)·dv`.
@@ -112,6 +130,13 @@ pub struct TraceParams {
     pub _pad2: u32,
 }
 
+/// `RenderParams::flags`: camera rays through a random point of the pixel, not its centre.
+pub const RENDER_JITTER: u32 = 1;
+/// Paths end at their first diffuse hit as a gather point for the photon map (`shade`).
+pub const RENDER_GATHER: u32 = 2;
+/// With `RENDER_GATHER`: no shadow ray; the photon map gives direct light too.
+pub const RENDER_PHOTON_DIRECT: u32 = 4;
+
 /// Push constants of the renderer's kernels (camera rays, path steps, accumulation).
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
@@ -120,14 +145,21 @@ pub struct RenderParams {
     pub count: u32,
     /// Index (in the camera's ray order) of the batch's first path.
     pub first: u32,
+    /// Random stream of this sample (each sample of a pixel has its own).
     pub seed: u32,
     pub light_count: u32,
     /// Which bounce of the paths this dispatch shades (0 = primary hits).
     pub bounce: u32,
-    /// Mirror reflections followed before a path is shaded as diffuse.
+    /// The last bounce: a path still going then is shaded as if diffuse and ends.
     pub max_bounces: u32,
-    pub _pad: [u32; 2],
+    /// Diffuse bounces a path continues through (0: direct lighting only).
+    pub diffuse_bounces: u32,
+    /// `RENDER_*` bits.
+    pub flags: u32,
     pub camera: Camera,
+    /// Which sample of the pixels this is (0 writes the film, later ones add to it).
+    pub sample: u32,
+    pub _pad: [u32; 3],
 }
 
 /// Push constants of the counting sort's kernels (`sort`): items, cells, and the distance of a
@@ -162,13 +194,23 @@ pub struct ShadeTerms {
     pub _pad1: u32,
 }
 
-/// A pixel's path through mirrors: what its next hit is worth (`throughput`), the radiance
-/// gathered so far, and whether it still continues.
+/// `PathState::flags`: the path continues.
+pub const PATH_ACTIVE: u32 = 1;
+/// The path's last vertex was specular (or the camera): emission it hits counts (after a
+/// diffuse vertex the shadow ray has counted it).
+pub const PATH_SPECULAR: u32 = 2;
+/// The path ended at a gather point, left in its ray slot (`shade::gather_point`).
+pub const PATH_GATHER: u32 = 4;
+/// Diffuse bounces so far, from this bit up.
+pub const PATH_DIFFUSE_SHIFT: u32 = 8;
+
+/// A pixel's path: what its next hit is worth (`throughput`), the radiance gathered so far,
+/// and its state (`PATH_*` bits).
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct PathState {
     pub throughput: [f32; 3],
-    pub active: u32,
+    pub flags: u32,
     pub radiance: [f32; 3],
     /// The pixel this path belongs to (its random stream).
     pub pixel: u32,
@@ -176,6 +218,118 @@ pub struct PathState {
 
 impl PathState {
     pub const fn start(pixel: u32) -> PathState {
-        PathState { throughput: [1.0; 3], active: 1, radiance: [0.0; 3], pixel }
+        PathState { throughput: [1.0; 3], flags: PATH_ACTIVE | PATH_SPECULAR, radiance: [0.0; 3], pixel }
     }
+    #[inline(always)]
+    pub fn is_active(&self) -> bool {
+        self.flags & PATH_ACTIVE != 0
+    }
+}
+
+/// `PhotonParams::flags`: photons that reach a diffuse surface straight from a light are stored
+/// (everything from the photon map); otherwise only those that bounced before (shadow rays
+/// give direct light).
+pub const PHOTON_STORE_DIRECT: u32 = 1;
+
+/// Push constants of the photon tracing kernels (`photon`).
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct PhotonParams {
+    /// Photons in this dispatch.
+    pub count: u32,
+    /// Index in the pass of the dispatch's first photon.
+    pub first: u32,
+    /// Photons emitted in the whole pass (each carries 1/emitted of the lights' power).
+    pub emitted: u32,
+    /// Random stream of the pass (a function of the render's seed and the pass index only).
+    pub seed: u32,
+    pub light_count: u32,
+    /// Which bounce this dispatch handles (0: hits of emitted photons).
+    pub bounce: u32,
+    pub max_bounces: u32,
+    /// `PHOTON_*` bits.
+    pub flags: u32,
+    /// Room in the photon records (photons past it are counted, not stored).
+    pub capacity: u32,
+    /// 0: every photon draws its own samples. Otherwise photons come in groups of 32 that
+    /// share one sample, each shifted by its lane's point of a rank-1 lattice scaled by
+    /// `spread` (modulo 1): every photon's marginal distribution is still exactly the lights'.
+    pub spread: f32,
+    /// The specular materials' photons go to the caustic map (1) or the global one (0).
+    pub caustic_map: u32,
+    pub _pad: u32,
+}
+
+/// `PhotonPath::flags`: the photon is still travelling.
+pub const PHOTON_ACTIVE: u32 = 1;
+/// Every bounce so far was specular (a caustic photon once it bounced at all).
+pub const PHOTON_SPECULAR_ONLY: u32 = 2;
+
+/// A photon in flight: its power (RGB, watts) and state.
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct PhotonPath {
+    pub power: [f32; 3],
+    pub flags: u32,
+}
+
+/// A stored photon, 20 bytes: position, power as shared-exponent RGB (RGB9E5), and `packed` =
+/// the surface normal on the side the photon arrived from (octahedral, 2 × 8 bits), the
+/// direction it came from (octahedral, 2 × 7 bits, bits 16..30) and whether it is a caustic
+/// photon (bit 30).
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct Photon {
+    pub position: [f32; 3],
+    pub power: u32,
+    pub packed: u32,
+}
+
+/// `IndexParams::kind`: hashed uniform grid of cell size 2r.
+pub const INDEX_GRID: u32 = 0;
+/// Cells from the geometry kd-tree's leaves, each subdivided to about 2r.
+pub const INDEX_KD: u32 = 1;
+
+/// `IndexParams::filter`: constant kernel 1/(πr²).
+pub const FILTER_CONSTANT: u32 = 0;
+/// Cone filter (Jensen, k = 1): weight 1 − d/r, normalised by 3/(πr²).
+pub const FILTER_CONE: u32 = 1;
+/// Epanechnikov: weight 1 − d²/r², normalised by 2/(πr²).
+pub const FILTER_EPANECHNIKOV: u32 = 2;
+
+/// Push constants of the photon index and gather kernels.
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct IndexParams {
+    /// Items of this dispatch: photon slots (index) or paths (gather).
+    pub count: u32,
+    /// Cells of one map; the caustic map's cells follow the global map's.
+    pub cells: u32,
+    /// `INDEX_GRID` or `INDEX_KD`.
+    pub kind: u32,
+    /// Maps: 1 (global) or 2 (global and caustic).
+    pub maps: u32,
+    /// Gather radius of the global and the caustic map.
+    pub radius: [f32; 2],
+    /// `FILTER_*`.
+    pub filter: u32,
+    /// Which sample of the pixels this is (0 writes the film, later ones add to it).
+    pub sample: u32,
+    /// The scene box (the grid's origin, the kd-tree's root cell).
+    pub bounds_min: [f32; 3],
+    pub _pad0: u32,
+    pub bounds_max: [f32; 3],
+    pub _pad1: u32,
+}
+
+/// A kd-tree leaf's cells in the photon index (`INDEX_KD`), one per node (interior nodes'
+/// have `dims` 0): the leaf's box, its first cell and its subdivision (`dims` = nx | ny << 10 |
+/// nz << 20, each 1..1023).
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct LeafCells {
+    pub lo: [f32; 3],
+    pub base: u32,
+    pub hi: [f32; 3],
+    pub dims: u32,
 }

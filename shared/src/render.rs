@@ -1,9 +1,10 @@
-//! The direct-lighting renderer's kernels as per-item functions (entry points in the shader
-//! crate, the same functions natively): camera rays, one path step per bounce (reflect at a
-//! mirror, or shade with one shadow ray), and accumulation once the shadow ray's answer is known.
+//! The eye-path kernels as per-item functions (entry points in the shader crate, the same
+//! functions natively): camera rays, one path step per bounce (`shade::path_step`: specular
+//! bounce, or shade with one shadow ray and continue / end / become a gather point),
+//! accumulation once the shadow ray's answer is known, and the film that sums the samples.
 use crate::camera;
 use crate::kernel::Store;
-use crate::pod::{Hit, ItemParams, Light, Material, PathState, RenderParams, ShadeTerms, Triangle};
+use crate::pod::{Hit, ItemParams, Light, Material, PathState, RenderParams, ShadeTerms, Triangle, RENDER_JITTER};
 use crate::ray::Ray;
 use crate::rng::Rng;
 use crate::shade;
@@ -13,7 +14,13 @@ use crate::shade;
 pub fn camera_rays<R: Store<Ray> + ?Sized, P: Store<PathState> + ?Sized>(i: u32, p: &RenderParams, rays: &mut R, paths: &mut P) {
     if i < p.count {
         let pixel = camera::pixel(&p.camera, p.first + i);
-        rays.store(i as usize, camera::primary_ray(&p.camera, pixel));
+        let ray = if p.flags & RENDER_JITTER != 0 {
+            let mut rng = Rng::new(p.seed ^ 0x6A09_E667, pixel);
+            camera::jittered_ray(&p.camera, pixel, rng.next_f32(), rng.next_f32())
+        } else {
+            camera::primary_ray(&p.camera, pixel)
+        };
+        rays.store(i as usize, ray);
         paths.store(i as usize, PathState::start(pixel));
     }
 }
@@ -42,8 +49,7 @@ pub fn path_step<R, P, SR, ST>(
         let k = i as usize;
         let mut ray = rays.load(k);
         let mut path = paths.load(k);
-        let (shadow, t) =
-            shade::path_step(p.seed, p.bounce, p.max_bounces, &mut ray, &hits[k], &mut path, tris, materials, lights, p.light_count);
+        let (shadow, t) = shade::path_step(p, &mut ray, &hits[k], &mut path, tris, materials, lights);
         rays.store(k, ray);
         paths.store(k, path);
         shadow_rays.store(k, shadow);
@@ -51,23 +57,35 @@ pub fn path_step<R, P, SR, ST>(
     }
 }
 
-/// Adds path `i`'s shaded terms; writes the pixel's radiance so far.
+/// Adds path `i`'s shaded terms.
 #[inline(always)]
-pub fn accumulate<P: Store<PathState> + ?Sized, O: Store<[f32; 4]> + ?Sized>(
-    i: u32,
-    p: &RenderParams,
-    terms: &[ShadeTerms],
-    occluded: &[u32],
-    paths: &mut P,
-    radiance: &mut O,
-) {
+pub fn accumulate<P: Store<PathState> + ?Sized>(i: u32, p: &RenderParams, terms: &[ShadeTerms], occluded: &[u32], paths: &mut P) {
     if i < p.count {
         let k = i as usize;
         let mut path = paths.load(k);
         shade::accumulate(&mut path, &terms[k], occluded[k] != 0);
         paths.store(k, path);
-        radiance.store(k, [path.radiance[0], path.radiance[1], path.radiance[2], 1.0]);
     }
+}
+
+/// The film: sample 0 writes path `i`'s radiance, later samples add theirs (the host divides
+/// by the number of samples).
+#[inline(always)]
+pub fn film<O: Store<[f32; 4]> + ?Sized>(i: u32, p: &RenderParams, paths: &[PathState], radiance: &mut O) {
+    if i < p.count {
+        let k = i as usize;
+        film_add(k, p.sample, paths[k].radiance, radiance);
+    }
+}
+
+/// Writes (sample 0) or adds `c` to element `k` of the film.
+#[inline(always)]
+pub fn film_add<O: Store<[f32; 4]> + ?Sized>(k: usize, sample: u32, c: [f32; 3], radiance: &mut O) {
+    let v = if sample == 0 { [c[0], c[1], c[2], 1.0] } else {
+        let o = radiance.load(k);
+        [o[0] + c[0], o[1] + c[1], o[2] + c[2], o[3] + 1.0]
+    };
+    radiance.store(k, v);
 }
 
 /// Four numbers of the stream (seed, first + i): checks CPU/GPU RNG identity (and keeps a GPU

@@ -43,15 +43,13 @@ pub fn bounces(scene: &Scene, tree: &KdTreeData, size: u32, max_bounces: u32) ->
         for (k, (ray, hit)) in rays.iter().zip(&hits).enumerate() {
             let mut ray = *ray;
             let mut path = paths[k];
-            let (s, _) = shade::path_step(
-                SEED, bounce, max_bounces, &mut ray, hit, &mut path,
-                &scene.triangles, &scene.materials, &lights, lights.len() as u32,
-            );
+            let p = kdray_shared::RenderParams { seed: SEED, bounce, max_bounces, light_count: lights.len() as u32, ..Default::default() };
+            let (s, _) = shade::path_step(&p, &mut ray, hit, &mut path, &scene.triangles, &scene.materials, &lights);
             if bounce == 0 && s.is_valid() {
                 shadow.push(s);
                 shadow_pixels.push(path.pixel);
             }
-            if path.active != 0 {
+            if path.is_active() {
                 next.0.push(ray);
                 next.1.push(path);
             }

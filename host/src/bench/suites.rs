@@ -13,7 +13,7 @@ use kdray_shared::kdtree::Algorithm;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
-pub const SUITES: &[&str] = &["horn", "bounces", "scaling", "breakdown", "build", "visits", "order", "traversals"];
+pub const SUITES: &[&str] = &["horn", "bounces", "scaling", "breakdown", "build", "visits", "order", "traversals", "photons"];
 
 /// What every suite needs.
 pub struct Options<'g> {
@@ -82,6 +82,7 @@ pub fn run_suite(suite: &str, o: &Options) -> Result<Vec<PathBuf>> {
             "visits" => visits(o, &mut scenes)?,
             "order" => order(o, &mut scenes)?,
             "traversals" => traversals(o, &mut scenes)?,
+            "photons" => super::photons::photons(o, &mut scenes)?,
             _ => bail!("unknown bench suite '{s}' (known: {}, all)", SUITES.join(", ")),
         };
         println!("suite {s}: {:.1} s", start.elapsed().as_secs_f64());
@@ -96,6 +97,14 @@ fn short_device(o: &Options) -> String {
         Some(g) => g.info.name.clone(),
         None => format!("CPU, {} threads", rayon::current_num_threads()),
     }
+}
+
+pub(super) fn short_device_name(o: &Options) -> String {
+    short_device(o)
+}
+
+pub(super) fn dev_name(o: &Options) -> &'static str {
+    dev(o)
 }
 
 fn dev(o: &Options) -> &'static str {
@@ -327,14 +336,14 @@ fn stage(entry: &str) -> &'static str {
 /// Times every pass of a whole `direct` frame (which must fit one batch): the kernels' entry
 /// points in order and their timings.
 fn time_frame(g: &crate::Gpu, t: &crate::Tracer, accel: Accel, cam: &kdray_shared::Camera, reps: usize) -> Result<(Vec<String>, crate::gpu::Timing)> {
-    use crate::integrator::direct;
+    use crate::integrator::path;
     t.check(accel)?;
     let n = (cam.width * cam.height) as usize;
     if t.batch_size(accel, n) < n {
         anyhow::bail!("a {}x{} frame does not fit one GPU batch", cam.width, cam.height);
     }
-    let fb = direct::FrameBuffers::new(t, accel, n)?;
-    let passes = direct::passes(t, accel, &direct::params(t, cam, 1, 4, 0, n), &fb)?;
+    let fb = path::FrameBuffers::new(t, accel, n)?;
+    let passes = path::passes(t, accel, &path::params(t, cam, &path::PathOptions::direct(1, 4), 0, n, 0), &fb)?;
     let timing = g.time_passes(&passes.iter().map(|k| k.as_ref()).collect::<Vec<_>>(), reps)?;
     Ok((passes.iter().map(|k| k.entry().into_owned()).collect(), timing))
 }

@@ -3,6 +3,8 @@
 //! same way). They hold no wgpu type and no runtime-specific code: the same schedule runs on
 //! the GPU and natively.
 pub mod direct;
+pub mod path;
+pub mod photon;
 
 use kdray_shared::Hit;
 
@@ -13,4 +15,12 @@ pub struct RenderOutput {
     pub height: u32,
     pub hits: Vec<Hit>,
     pub radiance: Vec<[f32; 4]>,
+}
+
+impl RenderOutput {
+    /// A black image with no hits.
+    pub fn new(width: u32, height: u32) -> Self {
+        let n = (width * height) as usize;
+        RenderOutput { width, height, hits: vec![Hit::NONE; n], radiance: vec![[0.0, 0.0, 0.0, 1.0]; n] }
+    }
 }

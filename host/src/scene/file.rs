@@ -11,7 +11,8 @@
 //! diffuse = [0.8, 0.8, 0.8]
 //! emission = [0.0, 0.0, 0.0]     # optional
 //! mirror = false                 # optional
-//! glass = false                  # optional
+//! glass = false                  # optional: a smooth dielectric (colourless)
+//! ior = 1.5                      # optional: glass's index of refraction
 //!
 //! [[mesh]]
 //! file = "bunny.obj"             # relative to this file; or builtin = "cornell"
@@ -22,6 +23,13 @@
 //! [[light]]
 //! point = [0.0, 1.0, 1.0]
 //! intensity = [10.0, 10.0, 10.0]
+//!
+//! [[light]]                      # a spot light: a point light with a direction and a cone
+//! point = [0.0, 1.0, 0.0]
+//! intensity = [10.0, 10.0, 10.0] # on the axis
+//! direction = [0.0, -1.0, 0.0]
+//! cone = 30.0                    # half angle in degrees, (0, 90]
+//! falloff_start = 25.0           # optional, degrees (default: cone, a hard edge)
 //!
 //! [[light]]                      # an emissive quad corner, corner+edge1(+edge2)
 //! corner = [-0.1, 0.3, -0.1]
@@ -57,6 +65,7 @@ struct FileMaterial {
     emission: Option<[f32; 3]>,
     mirror: Option<bool>,
     glass: Option<bool>,
+    ior: Option<f32>,
 }
 
 #[derive(Deserialize)]
@@ -78,6 +87,9 @@ struct FileLight {
     edge1: Option<[f32; 3]>,
     edge2: Option<[f32; 3]>,
     emission: Option<[f32; 3]>,
+    direction: Option<[f32; 3]>,
+    cone: Option<f32>,
+    falloff_start: Option<f32>,
 }
 
 #[derive(Deserialize)]
@@ -117,7 +129,11 @@ pub fn load_scene_file(path: &Path) -> Result<Scene> {
             | if m.glass.unwrap_or(false) { MAT_GLASS } else { 0 };
         let diffuse = check_color(&name, &format!("material '{mname}' diffuse"), m.diffuse)?;
         let emission = check_color(&name, &format!("material '{mname}' emission"), m.emission.unwrap_or([0.0; 3]))?;
-        scene.add_material(mname, Material { diffuse, flags, emission, _pad: 0 });
+        let ior = m.ior.unwrap_or(1.5);
+        if !(ior.is_finite() && ior >= 1.0 && ior <= 10.0) {
+            bail!("{name}: material '{mname}' ior must be between 1 and 10, got {ior}");
+        }
+        scene.add_material(mname, Material { diffuse, flags, emission, ior });
     }
     if file.mesh.is_empty() {
         bail!("{name}: no [[mesh]] entries: the scene is empty");
@@ -163,7 +179,22 @@ pub fn load_scene_file(path: &Path) -> Result<Scene> {
                 }
                 let position = finite(&name, &what("point"), p)?;
                 let intensity = Vec3::from(check_color(&name, &what("intensity"), l.intensity.unwrap_or([1.0; 3]))?);
-                scene.point_lights.push(PointLight { position, intensity });
+                let spot = match (l.direction, l.cone) {
+                    (None, None) if l.falloff_start.is_none() => None,
+                    (Some(d), Some(cone)) => {
+                        let d = finite(&name, &what("direction"), d)?;
+                        if d.length_squared() == 0.0 {
+                            bail!("{name}: light {}: direction is zero", i + 1);
+                        }
+                        let start = l.falloff_start.unwrap_or(cone);
+                        if !(cone > 0.0 && cone <= 90.0) || !(start >= 0.0 && start <= cone) {
+                            bail!("{name}: light {}: cone must be in (0, 90] degrees and falloff_start in [0, cone], got {cone} and {start}", i + 1);
+                        }
+                        Some(super::Spot { direction: d.normalize(), cone_deg: cone, falloff_start_deg: start })
+                    }
+                    _ => bail!("{name}: light {}: a spot light needs both 'direction' and 'cone'", i + 1),
+                };
+                scene.point_lights.push(PointLight { position, intensity, spot });
             }
             (None, Some(c)) => {
                 if l.intensity.is_some() {

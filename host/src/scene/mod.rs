@@ -1,12 +1,13 @@
 //! Scenes: triangles with materials, lights and a camera, validated on the way in.
 pub mod cornell;
 pub mod file;
+pub mod mitsuba;
 pub mod obj;
 pub mod procedural;
 
 use anyhow::{bail, Result};
 use glam::Vec3;
-use kdray_shared::{Camera, Light, Material, Triangle, LIGHT_POINT, LIGHT_TRIANGLE};
+use kdray_shared::{Camera, Light, Material, Triangle, LIGHT_POINT, LIGHT_SPOT, LIGHT_TRIANGLE};
 
 /// Where the camera is and what it sees; turned into the GPU `Camera` for a given resolution.
 #[derive(Clone, Debug, PartialEq)]
@@ -52,11 +53,20 @@ impl CameraSpec {
     }
 }
 
-/// A point light (emits `intensity` W/sr in every direction).
+/// A point light: emits `intensity` W/sr in every direction, or as a spot light inside a cone.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PointLight {
     pub position: Vec3,
     pub intensity: Vec3,
+    pub spot: Option<Spot>,
+}
+
+/// A spot light's cone: unit axis, half angle and the angle where the falloff starts (degrees).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Spot {
+    pub direction: Vec3,
+    pub cone_deg: f32,
+    pub falloff_start_deg: f32,
 }
 
 #[derive(Clone, Debug)]
@@ -132,9 +142,14 @@ impl Scene {
         self.add_triangle([q[0], q[2], q[3]], material, &|| format!("{name}: quad"))
     }
 
-    /// Whether any triangle is a mirror (only then are reflection rays traced).
+    /// Whether any triangle is a mirror.
     pub fn has_mirror(&self) -> bool {
         self.triangles.iter().any(|t| self.materials[t.material as usize].flags & kdray_shared::MAT_MIRROR != 0)
+    }
+
+    /// Whether any triangle is a mirror or glass (only then are specular bounces traced).
+    pub fn has_specular(&self) -> bool {
+        self.triangles.iter().any(|t| kdray_shared::shade::is_specular(&self.materials[t.material as usize]))
     }
 
     /// Fails on a scene with nothing to trace or with inputs that would make the renderer
@@ -200,41 +215,28 @@ impl Scene {
         Ok(())
     }
 
-    /// One warning per problem the renderer will not show, without the `warning: ` prefix:
-    /// materials marked glass (`MAT_GLASS`, OBJ `illum` 4/6/7/9, TOML `glass = true`) used by
-    /// some triangle, since dielectrics are not rendered yet. `source` names the scene.
-    pub fn warnings_for(&self, source: &str) -> Vec<String> {
-        let mut used = vec![false; self.materials.len()];
-        for t in &self.triangles {
-            used[t.material as usize] = true;
-        }
-        let glass: Vec<usize> = (0..self.materials.len())
-            .filter(|&i| used[i] && self.materials[i].flags & kdray_shared::MAT_GLASS != 0)
-            .collect();
-        if glass.is_empty() {
-            return Vec::new();
-        }
-        let quoted = |ids: &[usize]| ids.iter().map(|&i| format!("'{}'", self.material_names[i])).collect::<Vec<_>>().join(", ");
-        let (subject, shaded) = if glass.len() == 1 {
-            (format!("material {} is", quoted(&glass)), "it is")
-        } else {
-            (format!("materials {} are", quoted(&glass)), "they are")
-        };
-        let mirrors: Vec<usize> =
-            glass.iter().copied().filter(|&i| self.materials[i].flags & kdray_shared::MAT_MIRROR != 0).collect();
-        let also = if mirrors.is_empty() {
-            String::new()
-        } else {
-            format!(" (except {}, also marked mirror, shaded as a mirror)", quoted(&mirrors))
-        };
-        vec![format!(
-            "{source}: {subject} glass (dielectric); dielectrics are not rendered yet and {shaded} shaded as diffuse{also}"
-        )]
+    /// One warning per problem the renderer will not show, without the `warning: ` prefix;
+    /// `source` names the scene. (None today: glass, once shaded as diffuse with a warning, is a
+    /// dielectric since photon mapping.)
+    pub fn warnings_for(&self, _source: &str) -> Vec<String> {
+        Vec::new()
     }
 
     /// `warnings_for` the scene's name.
     pub fn warnings(&self) -> Vec<String> {
         self.warnings_for(&self.name)
+    }
+
+    /// The area of the surfaces photons land on (every non-emissive triangle), in f64.
+    pub fn surface_area(&self) -> f64 {
+        self.triangles
+            .iter()
+            .filter(|t| self.materials[t.material as usize].emission == [0.0; 3])
+            .map(|t| {
+                let (a, b, c) = (Vec3::from(t.v0).as_dvec3(), Vec3::from(t.v1).as_dvec3(), Vec3::from(t.v2).as_dvec3());
+                0.5 * (b - a).cross(c - a).length()
+            })
+            .sum()
     }
 
     pub fn bounds(&self) -> (Vec3, Vec3) {
@@ -268,6 +270,12 @@ impl Scene {
         let weights: Vec<f64> = entries.iter().map(|e| e.1).collect();
         let mut lights: Vec<Light> = entries.into_iter().map(|e| e.0).collect();
         fill_cdf(&mut lights, &weights);
+        let powers: Vec<f64> = lights.iter().map(power).collect();
+        let mut cdf: Vec<Light> = lights.clone();
+        fill_cdf(&mut cdf, &powers);
+        for (l, c) in lights.iter_mut().zip(&cdf) {
+            l.power_cdf = c.cdf;
+        }
         lights
     }
 
@@ -294,7 +302,7 @@ impl Scene {
                 e2: (v2 - v0).to_array(),
                 area,
                 emission: e,
-                _pad: 0,
+                power_cdf: 0.0,
             };
             out.push((light, weight(area, area64, e), LightSource::Triangle(i)));
         }
@@ -303,12 +311,17 @@ impl Scene {
             if lum == 0.0 {
                 continue;
             }
-            let light = Light {
+            let mut light = Light {
                 p0: p.position.to_array(),
                 kind: LIGHT_POINT,
                 emission: p.intensity.to_array(),
                 ..Default::default()
             };
+            if let Some(s) = &p.spot {
+                light.kind = LIGHT_SPOT;
+                light.e1 = s.direction.normalize().to_array();
+                light.e2 = [s.cone_deg.to_radians().cos(), s.falloff_start_deg.to_radians().cos(), 0.0];
+            }
             out.push((light, weight(1.0, 1.0, p.intensity.to_array()), LightSource::Point(i)));
         }
         out
@@ -333,6 +346,19 @@ fn weight(area: f32, area64: f64, c: [f32; 3]) -> f64 {
         w
     } else {
         area64 * luminance(c)
+    }
+}
+
+/// A light's emitted power (luminance, watts), the weight of photon emission: π·area·L for
+/// an emissive triangle (front side), 4π·I for a point light, 2π·I·(1 − (cos start + cos end)/2)
+/// for a spot light (pbrt-v4's).
+pub fn power(l: &Light) -> f64 {
+    use std::f64::consts::PI;
+    let lum = luminance(l.emission);
+    match l.kind {
+        LIGHT_POINT => 4.0 * PI * lum,
+        LIGHT_SPOT => 2.0 * PI * lum * (1.0 - 0.5 * (l.e2[0] as f64 + l.e2[1] as f64)),
+        _ => PI * l.area as f64 * lum,
     }
 }
 
@@ -409,6 +435,7 @@ pub fn load(spec: &str) -> Result<Scene> {
         "cornell" => cornell::cornell_box(),
         "cornell-mirror" => cornell::cornell_mirror(),
         "cornell-mirrors" => cornell::cornell_mirrors(),
+        "cornell-glass" => cornell::cornell_glass(),
         "cornell-chair" => procedural::cornell_chair()?,
         "conference" => procedural::conference()?,
         s if s.starts_with("chairs:") => match s["chairs:".len()..].parse::<u32>() {
@@ -417,7 +444,7 @@ pub fn load(spec: &str) -> Result<Scene> {
         },
         s if s.ends_with(".obj") => obj::load_obj_scene(std::path::Path::new(s))?,
         s if s.ends_with(".toml") => file::load_scene_file(std::path::Path::new(s))?,
-        s => bail!("unknown scene '{s}': use cornell, cornell-mirror, cornell-mirrors, cornell-chair, chairs:K, conference, a .obj file or a .toml scene file"),
+        s => bail!("unknown scene '{s}': use cornell, cornell-mirror, cornell-mirrors, cornell-glass, cornell-chair, chairs:K, conference, a .obj file or a .toml scene file"),
     };
     scene.validate()?;
     for w in scene.warnings_for(spec) {

@@ -125,11 +125,16 @@ fn material_from_mtl(name: &str, m: &tobj::Material) -> Result<Material> {
     let emission = super::check_color(name, &what("Ke"), m.emissive.unwrap_or([0.0; 3]))?;
     let flags = match m.illumination_model {
         Some(3) | Some(5) => MAT_MIRROR,
-        // Glass: kept, but shaded as diffuse until dielectrics exist (`Scene::warnings`).
+        // Glass: a smooth dielectric of index `Ni` (default 1.5).
         Some(4) | Some(6) | Some(7) | Some(9) => MAT_GLASS,
         _ => 0,
     };
-    Ok(Material { diffuse, flags, emission, _pad: 0 })
+    let ior = match m.optical_density {
+        Some(n) if n.is_finite() && (1.0..=10.0).contains(&n) => n,
+        Some(n) if flags & MAT_GLASS != 0 => bail!("{name}: {} must be between 1 and 10, got {n}", what("Ni")),
+        _ => 1.5,
+    };
+    Ok(Material { diffuse, flags, emission, ior })
 }
 
 /// Adds the meshes of an OBJ file to `scene`, transformed by `scale` then `translate`.
@@ -194,6 +199,7 @@ pub fn load_obj_scene(path: &Path) -> Result<Scene> {
     scene.point_lights.push(PointLight {
         position: scene.camera.eye + Vec3::new(0.3, 0.5, 0.0) * d,
         intensity: Vec3::splat(1.2 * d * d),
+        spot: None,
     });
     Ok(scene)
 }

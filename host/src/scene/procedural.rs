@@ -137,7 +137,7 @@ pub fn chairs(k: u32) -> Result<Scene> {
     all.into_scene(&mut s, wood, "chair")?;
     let e = half + 0.5;
     s.add_quad([Vec3::new(-e, 0.0, -e), Vec3::new(-e, 0.0, e), Vec3::new(e, 0.0, e), Vec3::new(e, 0.0, -e)], floor)?;
-    s.point_lights.push(PointLight { position: Vec3::new(half * 0.3, height * 0.8, half * 0.5), intensity: Vec3::splat(0.6 * height * height) });
+    s.point_lights.push(PointLight { position: Vec3::new(half * 0.3, height * 0.8, half * 0.5), intensity: Vec3::splat(0.6 * height * height), spot: None });
     Ok(s)
 }
 

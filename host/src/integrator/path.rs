@@ -1,0 +1,203 @@
+//! Eye paths: the direct-lighting renderer, the path tracer, and the photon mapper's eye pass
+//! are one schedule (`shade::path_step` decides per hit).
+//!
+//! Per batch of pixels and per sample: camera rays (through the pixel centre, or jittered);
+//! per bounce a closest-hit query, a path step (specular bounce, or shade with one shadow ray
+//! and continue / end / become a gather point), a shadow-ray any-hit query (only with lights)
+//! and accumulation; then the film adds the sample (the photon mapper's gather does that
+//! instead). Only what the scene needs runs: no bounces without specular surfaces or diffuse
+//! bounces, no shadow queries without lights. Batches alternate between two sets of buffers,
+//! so the GPU renders one while the host reads the last.
+use super::RenderOutput;
+use crate::accel::Accel;
+use crate::kernels::{Accumulate, CameraRays, Film, PathStep};
+use crate::runtime::{cast, Buffer, Kernel};
+use crate::tracer::{LeafLists, Tracer};
+use anyhow::{bail, Result};
+use indicatif::ProgressBar;
+use kdray_shared::query::{AnyHit, Closest};
+use kdray_shared::rng::pcg_hash;
+use kdray_shared::{camera, Camera, Hit, PathState, Ray, RenderParams, ShadeTerms, RENDER_JITTER};
+
+/// What the eye paths do.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct PathOptions {
+    /// Random stream of the first sample (later samples' streams derive from it).
+    pub seed: u32,
+    /// The last bounce (specular or diffuse) a path may take.
+    pub bounces: u32,
+    /// Diffuse bounces a path continues through: 0 is direct lighting.
+    pub diffuse_bounces: u32,
+    /// Samples per pixel.
+    pub spp: u32,
+    /// Camera rays through random points of their pixels (else the centres).
+    pub jitter: bool,
+}
+
+impl PathOptions {
+    /// Direct lighting: one sample through each pixel centre, `bounces` specular bounces.
+    pub fn direct(seed: u32, bounces: u32) -> Self {
+        PathOptions { seed, bounces, diffuse_bounces: 0, spp: 1, jitter: false }
+    }
+    /// Path tracing with next-event estimation: `spp` jittered samples, paths up to `bounces`
+    /// long.
+    pub fn path(seed: u32, bounces: u32, spp: u32) -> Self {
+        PathOptions { seed, bounces, diffuse_bounces: bounces, spp, jitter: true }
+    }
+}
+
+/// The random stream of sample `s` (sample 0 uses `seed` itself).
+pub fn sample_seed(seed: u32, s: u32) -> u32 {
+    if s == 0 {
+        seed
+    } else {
+        pcg_hash(seed ^ pcg_hash(s.wrapping_add(0x5851_F42D)))
+    }
+}
+
+/// The renderer's buffers for batches of up to `size` pixels.
+pub struct FrameBuffers {
+    pub rays: Buffer<Ray>,
+    pub paths: Buffer<PathState>,
+    hits: Buffer<Hit>,
+    pub primary_hits: Buffer<Hit>,
+    shadow: Buffer<Ray>,
+    terms: Buffer<ShadeTerms>,
+    /// Stays 0 in scenes without lights (no shadow pass writes it).
+    occluded: Buffer<u32>,
+    /// The film: the sum of the samples' radiance, and their number in the fourth component.
+    pub radiance: Buffer<[f32; 4]>,
+    lists: Option<LeafLists>,
+}
+
+impl FrameBuffers {
+    pub fn new(t: &Tracer, accel: Accel, size: usize) -> Result<Self> {
+        let rt = t.rt;
+        Ok(FrameBuffers {
+            rays: rt.alloc("ray", size)?,
+            paths: rt.alloc("path", size)?,
+            hits: rt.alloc("hit", size)?,
+            primary_hits: rt.alloc("primary hit", size)?,
+            shadow: rt.alloc("shadow ray", size)?,
+            terms: rt.alloc("shade terms", size)?,
+            occluded: rt.alloc("occluded", size)?,
+            radiance: rt.alloc("radiance", size)?,
+            lists: t.leaf_lists(accel, size)?,
+        })
+    }
+}
+
+/// Parameters of sample `sample` of the batch of pixels `first..first + count` (in the
+/// camera's ray order).
+pub fn params(t: &Tracer, cam: &Camera, o: &PathOptions, first: usize, count: usize, sample: u32) -> RenderParams {
+    let bounces_needed = t.has_specular || o.diffuse_bounces > 0;
+    RenderParams {
+        count: count as u32,
+        first: first as u32,
+        seed: sample_seed(o.seed, sample),
+        light_count: t.light_count,
+        bounce: 0,
+        max_bounces: if bounces_needed { o.bounces } else { 0 },
+        diffuse_bounces: o.diffuse_bounces,
+        flags: if o.jitter { RENDER_JITTER } else { 0 },
+        camera: *cam,
+        sample,
+        _pad: [0; 3],
+    }
+}
+
+/// Every pass of one sample of one batch, in order, up to the paths' last bounce (the caller
+/// adds the film or the gather). Bounce 0 writes its hits into `primary_hits`.
+pub fn path_passes<'a>(t: &'a Tracer, accel: Accel, p: &RenderParams, fb: &'a FrameBuffers) -> Result<Vec<Box<dyn Kernel + 'a>>> {
+    let n = p.count as usize;
+    let mut v: Vec<Box<dyn Kernel + 'a>> = vec![Box::new(CameraRays { params: *p, rays: &fb.rays, paths: &fb.paths })];
+    for bounce in 0..=p.max_bounces {
+        let params = RenderParams { bounce, ..*p };
+        let hits = if bounce == 0 { &fb.primary_hits } else { &fb.hits };
+        v.extend(t.query_passes::<Closest>(accel, n, &fb.rays, hits, fb.lists.as_ref())?);
+        v.push(Box::new(PathStep {
+            params,
+            rays: &fb.rays,
+            tris: &t.tris,
+            hits,
+            materials: &t.materials,
+            lights: &t.lights,
+            paths: &fb.paths,
+            shadow_rays: &fb.shadow,
+            terms: &fb.terms,
+        }));
+        if t.light_count > 0 {
+            v.extend(t.query_passes::<AnyHit>(accel, n, &fb.shadow, &fb.occluded, fb.lists.as_ref())?);
+        }
+        v.push(Box::new(Accumulate { params, terms: &fb.terms, occluded: &fb.occluded, paths: &fb.paths }));
+    }
+    Ok(v)
+}
+
+/// `path_passes` and the film.
+pub fn passes<'a>(t: &'a Tracer, accel: Accel, p: &RenderParams, fb: &'a FrameBuffers) -> Result<Vec<Box<dyn Kernel + 'a>>> {
+    let mut v = path_passes(t, accel, p, fb)?;
+    v.push(Box::new(Film { params: *p, paths: &fb.paths, radiance: &fb.radiance }));
+    Ok(v)
+}
+
+/// Puts a batch's results (in tracing order) where their pixels are, the film divided by its
+/// sample count.
+pub fn place(out: &mut RenderOutput, cam: &Camera, first: usize, hits: Vec<Hit>, film: Vec<[f32; 4]>) {
+    for (k, (h, r)) in hits.into_iter().zip(film).enumerate() {
+        let px = camera::pixel(cam, (first + k) as u32) as usize;
+        out.hits[px] = h;
+        let s = if r[3] > 0.0 { 1.0 / r[3] } else { 0.0 };
+        out.radiance[px] = [r[0] * s, r[1] * s, r[2] * s, 1.0];
+    }
+}
+
+/// Samples recorded into one submission (bounds the size of a command buffer).
+const SAMPLES_PER_SUBMIT: u32 = 16;
+
+/// Renders `cam`'s image: `o.spp` samples per pixel.
+pub fn render(t: &Tracer, accel: Accel, cam: &Camera, o: &PathOptions, progress: &ProgressBar) -> Result<RenderOutput> {
+    t.check(accel)?;
+    if o.spp == 0 {
+        bail!("at least one sample per pixel is needed");
+    }
+    let rt = t.rt;
+    let n = (cam.width * cam.height) as usize;
+    let b = t.batch_size(accel, n);
+    let sets = if n > b { 2 } else { 1 };
+    let fbs: Vec<FrameBuffers> = (0..sets).map(|_| FrameBuffers::new(t, accel, b)).collect::<Result<_>>()?;
+    let mut out = RenderOutput::new(cam.width, cam.height);
+    progress.set_length(n as u64 * o.spp as u64);
+    let mut pending = None;
+    let mut first = 0;
+    let mut batch = 0;
+    while first < n {
+        let count = b.min(n - first);
+        let fb = &fbs[batch % sets];
+        let mut c = rt.begin();
+        for s in 0..o.spp {
+            let p = params(t, cam, o, first, count, s);
+            for k in passes(t, accel, &p, fb)? {
+                rt.dispatch(&mut c, k.as_ref())?;
+            }
+            if (s + 1) % SAMPLES_PER_SUBMIT == 0 && s + 1 < o.spp {
+                rt.submit(std::mem::replace(&mut c, rt.begin()))?;
+                progress.inc((count * SAMPLES_PER_SUBMIT as usize) as u64);
+            }
+        }
+        let h = rt.read_back_of(&mut c, &fb.primary_hits, count)?;
+        let r = rt.read_back_of(&mut c, &fb.radiance, count)?;
+        rt.submit(c)?;
+        if let Some((f, h, r, cnt)) = pending.replace((first, h, r, count)) {
+            place(&mut out, cam, f, cast(rt.wait(h)?), cast(rt.wait(r)?));
+            progress.inc(cnt as u64 * (o.spp - SAMPLES_PER_SUBMIT * ((o.spp - 1) / SAMPLES_PER_SUBMIT)) as u64);
+        }
+        first += count;
+        batch += 1;
+    }
+    if let Some((f, h, r, cnt)) = pending {
+        place(&mut out, cam, f, cast(rt.wait(h)?), cast(rt.wait(r)?));
+        progress.inc(cnt as u64 * (o.spp - SAMPLES_PER_SUBMIT * ((o.spp - 1) / SAMPLES_PER_SUBMIT)) as u64);
+    }
+    Ok(out)
+}

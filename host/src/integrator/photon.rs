@@ -1,0 +1,535 @@
+//! Progressive photon mapping (Knaus & Zwicker 2011) on either runtime, in passes of bounded
+//! memory, after Frolov & Ignatenko's GPU scheme. Each pass, a function of its index and the
+//! scene only:
+//!
+//! 1. **trace** — `photons` photons leave the lights (`photon::emit`), then per bounce a
+//!    closest-hit query and `photon::bounce` (store at diffuse hits, Russian roulette);
+//! 2. **index** — every stored photon's cell (hashed grid or kd leaves), a counting sort by
+//!    cell on the device (`sort::CountingSort`), the records permuted into cell order;
+//! 3. **eye** — one jittered sample per pixel through specular bounces to a diffuse gather
+//!    point, direct light by a shadow ray (or from the photon map);
+//! 4. **gather** — the photons within the pass's radius at each gather point, added to the
+//!    film.
+//!
+//! The radius shrinks from pass to pass, r²ᵢ₊₁ = r²ᵢ (i + α)/(i + 1), so the average of the
+//! passes converges to the right answer; memory does not grow with the number of passes. The
+//! record buffer is sized from the first pass and grows (the pass is traced again: passes are
+//! deterministic) should a later pass store more.
+use super::path::{self, FrameBuffers, PathOptions};
+use super::RenderOutput;
+use crate::accel::Accel;
+use crate::kdtree::KdTreeData;
+use crate::kernels::{EmitPhotons, Gather, IndexBinds, PermutePhotons, PhotonBounce, PhotonKeys};
+use crate::runtime::{cast, Buffer, Kernel, Runtime};
+use crate::sort::CountingSort;
+use crate::tracer::{LeafLists, Tracer};
+use anyhow::{bail, Result};
+use indicatif::ProgressBar;
+use kdray_shared::kdtree::KdNode;
+use kdray_shared::query::Closest;
+use kdray_shared::rng::pcg_hash;
+use kdray_shared::{
+    Camera, Hit, IndexParams, LeafCells, Photon, PhotonParams, PhotonPath, Ray, RenderParams, FILTER_CONSTANT, INDEX_GRID, INDEX_KD,
+    PHOTON_STORE_DIRECT, RENDER_GATHER, RENDER_JITTER, RENDER_PHOTON_DIRECT,
+};
+use std::time::Instant;
+
+/// Which photon index: the paper's kd-tree leaves subdivided to about the radius, or a hashed
+/// uniform grid of cell size 2r.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum IndexKind {
+    Grid,
+    Kd,
+}
+
+/// What a photon-mapped render does.
+#[derive(Clone, Debug)]
+pub struct PhotonOptions {
+    /// Photons emitted per pass.
+    pub photons: u32,
+    /// Passes (each: new photons, one eye sample per pixel, a smaller radius).
+    pub passes: u32,
+    /// Stop after the pass that ends past this many seconds.
+    pub time_limit: Option<f64>,
+    /// The first pass's gather radius (scene units); default: about 50 photons per gather.
+    pub radius: Option<f32>,
+    /// The caustic map's radius relative to the global map's.
+    pub caustic_radius: f32,
+    /// Knaus & Zwicker's α: 1 keeps the radius fixed.
+    pub alpha: f32,
+    pub index: IndexKind,
+    /// 0: independent photons; otherwise groups of 32 with lattice offsets of this spread.
+    pub spread: f32,
+    /// Everything from the photon map (the paper's way); otherwise direct light by shadow
+    /// rays and only indirect light from the photon map.
+    pub photon_direct: bool,
+    /// `FILTER_*` of the gather.
+    pub filter: u32,
+    /// Photon bounces traced.
+    pub photon_bounces: u32,
+    /// Specular bounces of eye paths.
+    pub eye_bounces: u32,
+    /// Eye samples per pixel and pass (all gather from the pass's photons).
+    pub eye_samples: u32,
+    pub seed: u32,
+}
+
+impl Default for PhotonOptions {
+    fn default() -> Self {
+        PhotonOptions {
+            photons: 1 << 20,
+            passes: 16,
+            time_limit: None,
+            radius: None,
+            caustic_radius: 0.5,
+            alpha: 2.0 / 3.0,
+            index: IndexKind::Grid,
+            spread: 1.0,
+            photon_direct: false,
+            filter: FILTER_CONSTANT,
+            photon_bounces: 16,
+            eye_bounces: 16,
+            eye_samples: 1,
+            seed: 1,
+        }
+    }
+}
+
+/// What one render did.
+#[derive(Clone, Debug, Default)]
+pub struct PhotonStats {
+    pub passes: u32,
+    pub emitted: u64,
+    pub stored: u64,
+    /// The last pass's gather radius (global map).
+    pub last_radius: f32,
+    pub seconds: f64,
+}
+
+/// The seed of pass `pass`.
+pub fn pass_seed(seed: u32, pass: u32) -> u32 {
+    pcg_hash(seed.wrapping_mul(0x2545_F491) ^ pcg_hash(pass))
+}
+
+/// The global radius of pass `pass` (0-based) from the first pass's `r0`.
+pub fn pass_radius(r0: f32, alpha: f32, pass: u32) -> f32 {
+    let mut r2 = (r0 as f64).powi(2);
+    for i in 1..=pass {
+        r2 *= (i as f64 + alpha as f64) / (i as f64 + 1.0);
+    }
+    r2.sqrt() as f32
+}
+
+/// The photon map's device buffers and the scene-derived sizes.
+pub struct PhotonMap<'t> {
+    t: &'t Tracer<'t>,
+    accel: Accel,
+    pub o: PhotonOptions,
+    batch: usize,
+    rays: Buffer<Ray>,
+    paths: Buffer<PhotonPath>,
+    hits: Buffer<Hit>,
+    lists: Option<LeafLists>,
+    pub records: Buffer<Photon>,
+    pub sorted: Buffer<Photon>,
+    pub counter: Buffer<u32>,
+    keys: Buffer<u32>,
+    order: Buffer<u32>,
+    sort: CountingSort<'t>,
+    pub capacity: u32,
+    /// Cells per map.
+    cells: u32,
+    maps: u32,
+    bounds: ([f32; 3], [f32; 3]),
+    /// The kd index: the tree's nodes on the device, each leaf's box (host), the cell table.
+    kd: Option<(Vec<Option<([f32; 3], [f32; 3])>>, Buffer<LeafCells>)>,
+    r0: f32,
+}
+
+/// Every node's box if it is a leaf (walking from the root cell).
+fn leaf_boxes(nodes: &[KdNode], lo: [f32; 3], hi: [f32; 3]) -> Vec<Option<([f32; 3], [f32; 3])>> {
+    let mut out = vec![None; nodes.len()];
+    let mut stack = vec![(0usize, lo, hi)];
+    while let Some((i, lo, hi)) = stack.pop() {
+        let n = nodes[i];
+        if n.is_leaf() {
+            out[i] = Some((lo, hi));
+            continue;
+        }
+        let (a, s, c) = (n.axis(), n.split(), n.first_child() as usize);
+        let (mut hi_below, mut lo_above) = (hi, lo);
+        hi_below[a] = s;
+        lo_above[a] = s;
+        stack.push((c, lo, hi_below));
+        stack.push((c + 1, lo_above, hi));
+    }
+    out
+}
+
+/// The kd index's cell table for radius `r`: each leaf split into cells of about 2r (at least
+/// one, at most 1023 per axis), coarser everywhere if that would exceed `budget` cells.
+fn leaf_cells(boxes: &[Option<([f32; 3], [f32; 3])>], r: f32, budget: u64) -> (Vec<LeafCells>, u32) {
+    let mut size = 2.0 * r as f64;
+    loop {
+        let mut table = vec![LeafCells::default(); boxes.len()];
+        let mut total: u64 = 0;
+        for (e, b) in table.iter_mut().zip(boxes) {
+            if let Some((lo, hi)) = b {
+                let d: Vec<u32> = (0..3).map(|a| (((hi[a] - lo[a]) as f64 / size).ceil() as u32).clamp(1, 1023)).collect();
+                *e = LeafCells { lo: *lo, base: total as u32, hi: *hi, dims: d[0] | (d[1] << 10) | (d[2] << 20) };
+                total += d[0] as u64 * d[1] as u64 * d[2] as u64;
+            }
+        }
+        if total <= budget || size > 1e30 {
+            return (table, total.max(1) as u32);
+        }
+        size *= ((total as f64 / budget as f64).cbrt()).max(1.05);
+    }
+}
+
+impl<'t> PhotonMap<'t> {
+    /// Buffers for `o.photons` photons per pass; `tree` is needed for the kd index.
+    pub fn new(t: &'t Tracer<'t>, accel: Accel, tree: Option<&KdTreeData>, scene_area: f64, o: PhotonOptions) -> Result<Self> {
+        t.check(accel)?;
+        if o.photons == 0 || o.eye_samples == 0 || o.passes == 0 {
+            bail!("photon mapping needs at least one photon, pass and eye sample per pass");
+        }
+        if !(o.alpha > 0.0 && o.alpha <= 1.0) {
+            bail!("the radius reduction alpha must be in (0, 1], got {}", o.alpha);
+        }
+        if let Some(r) = o.radius {
+            if !(r.is_finite() && r > 0.0) {
+                bail!("--radius must be a positive number, got {r}");
+            }
+        }
+        let rt = t.rt;
+        let batch = t.batch_size(accel, o.photons as usize);
+        // Stored photons per emitted one: about the number of diffuse bounces; sized up after
+        // the first pass if needed.
+        let capacity = o.photons.saturating_mul(2).max(1024);
+        let maps = if t.has_specular { 2 } else { 1 };
+        let (lo, hi) = t.bounds();
+        let r0 = o.radius.unwrap_or_else(|| ((50.0 * scene_area) / (std::f64::consts::PI * o.photons as f64)).sqrt() as f32);
+        let kd = match o.index {
+            IndexKind::Grid => None,
+            IndexKind::Kd => {
+                let tree = tree.ok_or_else(|| anyhow::anyhow!("the kd photon index needs the scene's kd-tree (a kd traversal)"))?;
+                Some((leaf_boxes(&tree.nodes, tree.bounds.min, tree.bounds.max), rt.alloc("kd leaf cells", tree.nodes.len())?))
+            }
+        };
+        let cells = Self::cells_for(o.index, capacity);
+        let sort = CountingSort::new(rt, cells.checked_mul(maps).ok_or_else(|| anyhow::anyhow!("too many photon cells"))?)?;
+        Ok(PhotonMap {
+            t,
+            accel,
+            batch,
+            rays: rt.alloc("photon ray", batch)?,
+            paths: rt.alloc("photon path", batch)?,
+            hits: rt.alloc("photon hit", batch)?,
+            lists: t.leaf_lists(accel, batch)?,
+            records: rt.alloc("photon", capacity as usize)?,
+            sorted: rt.alloc("sorted photon", capacity as usize)?,
+            counter: rt.alloc("photon counter", 1)?,
+            keys: rt.alloc("photon cell", capacity as usize)?,
+            order: rt.alloc("photon order", capacity as usize)?,
+            sort,
+            capacity,
+            cells,
+            maps,
+            bounds: (lo, hi),
+            kd,
+            r0,
+            o,
+        })
+    }
+
+    /// Cells per map: the grid's buckets (a power of two about the photon count), or the kd
+    /// index's budget.
+    fn cells_for(kind: IndexKind, capacity: u32) -> u32 {
+        match kind {
+            IndexKind::Grid => capacity.next_power_of_two().min(1 << 30),
+            IndexKind::Kd => capacity.saturating_mul(2).min(1 << 30),
+        }
+    }
+
+    fn grow(&mut self, stored: u32) -> Result<()> {
+        let rt = self.t.rt;
+        let capacity = (stored as u64 * 5 / 4).min(u32::MAX as u64 / 2) as u32;
+        self.records = rt.alloc("photon", capacity as usize)?;
+        self.sorted = rt.alloc("sorted photon", capacity as usize)?;
+        self.keys = rt.alloc("photon cell", capacity as usize)?;
+        self.order = rt.alloc("photon order", capacity as usize)?;
+        self.capacity = capacity;
+        let cells = Self::cells_for(self.o.index, capacity);
+        if cells != self.cells {
+            self.cells = cells;
+            self.sort = CountingSort::new(rt, cells * self.maps)?;
+        }
+        Ok(())
+    }
+
+    /// The first pass's global radius.
+    pub fn initial_radius(&self) -> f32 {
+        self.r0
+    }
+
+    pub fn photon_params(&self, pass: u32) -> PhotonParams {
+        PhotonParams {
+            count: 0,
+            first: 0,
+            emitted: self.o.photons,
+            seed: pass_seed(self.o.seed, pass),
+            light_count: self.t.light_count,
+            bounce: 0,
+            max_bounces: self.o.photon_bounces,
+            flags: if self.o.photon_direct { PHOTON_STORE_DIRECT } else { 0 },
+            capacity: self.capacity,
+            spread: self.o.spread,
+            caustic_map: (self.maps > 1) as u32,
+            _pad: 0,
+        }
+    }
+
+    /// Records tracing pass `pass`'s photons into `c`: records and counter filled.
+    pub fn record_trace(&self, c: &mut crate::runtime::Commands, pass: u32) -> Result<()> {
+        let t = self.t;
+        let rt = t.rt;
+        rt.clear(c, self.counter.raw())?;
+        let base = self.photon_params(pass);
+        let mut first = 0u32;
+        while first < self.o.photons {
+            let count = (self.batch as u32).min(self.o.photons - first);
+            let p = PhotonParams { count, first, ..base };
+            rt.dispatch(c, &EmitPhotons { params: p, lights: &t.lights, rays: &self.rays, paths: &self.paths })?;
+            for bounce in 0..=self.o.photon_bounces {
+                for k in t.query_passes::<Closest>(self.accel, count as usize, &self.rays, &self.hits, self.lists.as_ref())? {
+                    rt.dispatch(c, k.as_ref())?;
+                }
+                rt.dispatch(
+                    c,
+                    &PhotonBounce {
+                        params: PhotonParams { bounce, ..p },
+                        rays: &self.rays,
+                        hits: &self.hits,
+                        tris: &t.tris,
+                        materials: &t.materials,
+                        paths: &self.paths,
+                        photons: &self.records,
+                        counter: &self.counter,
+                    },
+                )?;
+            }
+            first += count;
+        }
+        Ok(())
+    }
+
+    /// The index parameters of pass `pass` for `count` items.
+    pub fn index_params(&self, pass: u32, count: u32) -> IndexParams {
+        let r = pass_radius(self.r0, self.o.alpha, pass);
+        IndexParams {
+            count,
+            cells: self.cells,
+            kind: if self.kd.is_some() { INDEX_KD } else { INDEX_GRID },
+            maps: self.maps,
+            radius: [r, r * self.o.caustic_radius],
+            filter: self.o.filter,
+            sample: pass,
+            bounds_min: self.bounds.0,
+            bounds_max: self.bounds.1,
+            ..Default::default()
+        }
+    }
+
+    fn index_binds(&self) -> IndexBinds<'_> {
+        match (&self.kd, &self.t.structure) {
+            (Some((_, leaves)), crate::tracer::AccelStructure::KdTree { nodes, .. }) => IndexBinds::Kd { nodes, leaves },
+            _ => IndexBinds::Grid,
+        }
+    }
+
+    /// Updates the kd index's cell table for pass `pass`'s radius (host: a function of the
+    /// tree and the radius only).
+    fn prepare_index(&mut self, pass: u32) -> Result<()> {
+        if let (Some(table), Some((_, buf))) = (self.leaf_table(pass), &self.kd) {
+            self.t.rt.write(buf, &table)?;
+        }
+        Ok(())
+    }
+
+    /// The kd index's cell table of pass `pass` (`None` for the grid).
+    pub fn leaf_table(&self, pass: u32) -> Option<Vec<LeafCells>> {
+        let (boxes, _) = self.kd.as_ref()?;
+        Some(leaf_cells(boxes, pass_radius(self.r0, self.o.alpha, pass), self.cells as u64).0)
+    }
+
+    /// Records building the index of the stored photons into `c`: keys, counting sort,
+    /// permutation into `sorted`.
+    pub fn record_index(&self, c: &mut crate::runtime::Commands, pass: u32) -> Result<()> {
+        let rt = self.t.rt;
+        let p = self.index_params(pass, self.capacity);
+        rt.dispatch(c, &PhotonKeys { params: p, index: self.index_binds(), photons: &self.records, counter: &self.counter, keys: &self.keys })?;
+        self.sort.record(c, &self.keys, self.capacity, &self.order)?;
+        rt.dispatch(c, &PermutePhotons { params: p, photons: &self.records, order: &self.order, offsets: &self.sort.offsets, sorted: &self.sorted })
+    }
+
+    /// The gather pass of pass `pass` over a batch of eye paths, film sample `sample`.
+    pub fn gather<'a>(&'a self, pass: u32, sample: u32, count: u32, fb: &'a FrameBuffers) -> Gather<'a> {
+        Gather {
+            params: IndexParams { sample, ..self.index_params(pass, count) },
+            index: self.index_binds(),
+            rays: &fb.rays,
+            paths: &fb.paths,
+            photons: &self.sorted,
+            offsets: &self.sort.offsets,
+            film: &fb.radiance,
+        }
+    }
+
+    /// Traces pass `pass`'s photons and indexes them (growing the records and tracing again if
+    /// they did not fit); returns the photons stored.
+    pub fn trace_and_index(&mut self, pass: u32) -> Result<u32> {
+        let rt: &dyn Runtime = self.t.rt;
+        loop {
+            self.prepare_index(pass)?;
+            let mut c = rt.begin();
+            self.record_trace(&mut c, pass)?;
+            let pc = rt.read_back_of(&mut c, &self.counter, 1)?;
+            rt.submit(c)?;
+            let stored: Vec<u32> = cast(rt.wait(pc)?);
+            if stored[0] > self.capacity {
+                self.grow(stored[0])?;
+                continue;
+            }
+            let mut c = rt.begin();
+            self.record_index(&mut c, pass)?;
+            rt.submit(c)?;
+            return Ok(stored[0]);
+        }
+    }
+
+    /// Photon rays traced and photon bounces (hits) of pass `pass`, counted from the hits of
+    /// every bounce (a separate counting run: the timed runs read nothing back).
+    pub fn count_bounces(&self, pass: u32) -> Result<(u64, u64)> {
+        let t = self.t;
+        let rt = t.rt;
+        let (mut rays, mut hits) = (0u64, 0u64);
+        rt.finish()?;
+        let mut c = rt.begin();
+        rt.clear(&mut c, self.counter.raw())?;
+        rt.submit(c)?;
+        let base = self.photon_params(pass);
+        let mut first = 0u32;
+        while first < self.o.photons {
+            let count = (self.batch as u32).min(self.o.photons - first);
+            let p = PhotonParams { count, first, ..base };
+            let mut c = rt.begin();
+            rt.dispatch(&mut c, &EmitPhotons { params: p, lights: &t.lights, rays: &self.rays, paths: &self.paths })?;
+            rt.submit(c)?;
+            for bounce in 0..=self.o.photon_bounces {
+                let mut c = rt.begin();
+                for k in t.query_passes::<Closest>(self.accel, count as usize, &self.rays, &self.hits, self.lists.as_ref())? {
+                    rt.dispatch(&mut c, k.as_ref())?;
+                }
+                let pr = rt.read_back_of(&mut c, &self.rays, count as usize)?;
+                let ph = rt.read_back_of(&mut c, &self.hits, count as usize)?;
+                rt.dispatch(
+                    &mut c,
+                    &PhotonBounce {
+                        params: PhotonParams { bounce, ..p },
+                        rays: &self.rays,
+                        hits: &self.hits,
+                        tris: &t.tris,
+                        materials: &t.materials,
+                        paths: &self.paths,
+                        photons: &self.records,
+                        counter: &self.counter,
+                    },
+                )?;
+                rt.submit(c)?;
+                let rs: Vec<Ray> = cast(rt.wait(pr)?);
+                let hs: Vec<Hit> = cast(rt.wait(ph)?);
+                rays += rs.iter().filter(|r| r.is_valid()).count() as u64;
+                hits += hs.iter().filter(|h| h.is_hit()).count() as u64;
+            }
+            first += count;
+        }
+        Ok((rays, hits))
+    }
+
+    /// The stored photons of the last traced pass, in slot order (tests, diagnostics).
+    pub fn read_records(&self) -> Result<Vec<Photon>> {
+        let n = self.t.rt.read(&self.counter, 1)?[0].min(self.capacity) as usize;
+        self.t.rt.read(&self.records, n)
+    }
+
+    /// The sorted photons and the cell offsets of the last index (tests, diagnostics).
+    pub fn read_index(&self) -> Result<(Vec<Photon>, Vec<u32>)> {
+        let offsets = self.t.rt.read(&self.sort.offsets, (self.cells * self.maps) as usize + 1)?;
+        let n = *offsets.last().unwrap() as usize;
+        Ok((self.t.rt.read(&self.sorted, n)?, offsets))
+    }
+}
+
+/// Eye-path parameters of eye sample `sample` (of all passes; jittered, ending at gather
+/// points).
+fn eye_params(t: &Tracer, cam: &Camera, o: &PhotonOptions, first: usize, count: usize, sample: u32) -> RenderParams {
+    let po = PathOptions { seed: pass_seed(o.seed ^ 0x0E7E_0E7E, sample), bounces: o.eye_bounces, diffuse_bounces: 0, spp: 1, jitter: true };
+    let mut p = path::params(t, cam, &po, first, count, 0);
+    p.seed = po.seed;
+    p.sample = sample;
+    p.flags = RENDER_JITTER | RENDER_GATHER | if o.photon_direct { RENDER_PHOTON_DIRECT } else { 0 };
+    p
+}
+
+/// Renders `cam`'s image by progressive photon mapping; `progress` counts passes.
+pub fn render(map: &mut PhotonMap, cam: &Camera, progress: &ProgressBar) -> Result<(RenderOutput, PhotonStats)> {
+    let t = map.t;
+    let rt = t.rt;
+    let accel = map.accel;
+    let n = (cam.width * cam.height) as usize;
+    let b = t.batch_size(accel, n);
+    let batches: Vec<(usize, usize)> = (0..n).step_by(b).map(|f| (f, b.min(n - f))).collect();
+    let fbs: Vec<FrameBuffers> = batches.iter().map(|&(_, c)| FrameBuffers::new(t, accel, c)).collect::<Result<_>>()?;
+    progress.set_length(map.o.passes as u64);
+    let start = Instant::now();
+    let mut stats = PhotonStats::default();
+    for pass in 0..map.o.passes {
+        let stored = map.trace_and_index(pass)?;
+        let mut c = rt.begin();
+        for s in 0..map.o.eye_samples {
+            let sample = pass * map.o.eye_samples + s;
+            for (&(first, count), fb) in batches.iter().zip(&fbs) {
+                let p = eye_params(t, cam, &map.o, first, count, sample);
+                for k in path::path_passes(t, accel, &p, fb)? {
+                    rt.dispatch(&mut c, k.as_ref())?;
+                }
+                rt.dispatch(&mut c, &map.gather(pass, sample, count as u32, fb) as &dyn Kernel)?;
+            }
+        }
+        rt.submit(c)?;
+        stats.passes += 1;
+        stats.emitted += map.o.photons as u64;
+        stats.stored += stored as u64;
+        stats.last_radius = pass_radius(map.r0, map.o.alpha, pass);
+        progress.inc(1);
+        let secs = start.elapsed().as_secs_f64();
+        progress.set_message(format!("{:.1} M photons/s", stats.emitted as f64 / secs / 1e6));
+        if map.o.time_limit.is_some_and(|l| secs >= l) {
+            break;
+        }
+    }
+    let mut out = RenderOutput::new(cam.width, cam.height);
+    let mut c = rt.begin();
+    let pending: Vec<_> = batches
+        .iter()
+        .zip(&fbs)
+        .map(|(&(_, count), fb)| Ok((rt.read_back_of(&mut c, &fb.primary_hits, count)?, rt.read_back_of(&mut c, &fb.radiance, count)?)))
+        .collect::<Result<_>>()?;
+    rt.submit(c)?;
+    for ((first, _), (h, r)) in batches.iter().zip(pending) {
+        path::place(&mut out, cam, *first, cast(rt.wait(h)?), cast(rt.wait(r)?));
+    }
+    stats.seconds = start.elapsed().as_secs_f64();
+    Ok((out, stats))
+}

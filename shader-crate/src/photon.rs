@@ -1,0 +1,108 @@
+//! Photon mapping's entry points (`kdray_shared::photon`): emission, one bounce, the index's
+//! keys and permutation, and the gather, for both photon indices (hashed grid, kd leaves).
+use crate::Atomics;
+use kdray_shared::kdtree::KdNode;
+use kdray_shared::photon::{self, HashGrid, KdCells};
+use kdray_shared::{Hit, IndexParams, LeafCells, Light, Material, PathState, Photon, PhotonParams, PhotonPath, Ray, Triangle};
+use spirv_std::glam::UVec3;
+use spirv_std::spirv;
+
+#[spirv(compute(threads(64)))]
+pub fn emit_photons(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(num_workgroups)] groups: UVec3,
+    #[spirv(push_constant)] params: &PhotonParams,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] lights: &[Light],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &mut [Ray],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] paths: &mut [PhotonPath],
+) {
+    photon::emit(crate::item(id, groups), params, lights, rays, paths);
+}
+
+#[spirv(compute(threads(64)))]
+pub fn photon_bounce(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(num_workgroups)] groups: UVec3,
+    #[spirv(push_constant)] params: &PhotonParams,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] rays: &mut [Ray],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] hits: &[Hit],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] tris: &[Triangle],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] materials: &[Material],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] paths: &mut [PhotonPath],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] photons: &mut [Photon],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] counter: &mut [u32],
+) {
+    photon::bounce(crate::item(id, groups), params, rays, hits, tris, materials, paths, photons, &mut Atomics(counter));
+}
+
+#[spirv(compute(threads(64)))]
+pub fn photon_keys_grid(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(num_workgroups)] groups: UVec3,
+    #[spirv(push_constant)] params: &IndexParams,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] photons: &[Photon],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] counter: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] keys: &mut [u32],
+) {
+    photon::keys(crate::item(id, groups), params, &HashGrid::new(params), photons, counter, keys);
+}
+
+#[spirv(compute(threads(64)))]
+pub fn photon_keys_kd(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(num_workgroups)] groups: UVec3,
+    #[spirv(push_constant)] params: &IndexParams,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] photons: &[Photon],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] counter: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] nodes: &[KdNode],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] leaves: &[LeafCells],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] keys: &mut [u32],
+) {
+    let index = KdCells { nodes, leaves, cells: params.cells };
+    photon::keys(crate::item(id, groups), params, &index, photons, counter, keys);
+}
+
+#[spirv(compute(threads(64)))]
+pub fn permute_photons(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(num_workgroups)] groups: UVec3,
+    #[spirv(push_constant)] params: &IndexParams,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] photons: &[Photon],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] order: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] offsets: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] sorted: &mut [Photon],
+) {
+    photon::permute(crate::item(id, groups), params, photons, order, offsets, sorted);
+}
+
+#[spirv(compute(threads(64)))]
+pub fn gather_grid(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(num_workgroups)] groups: UVec3,
+    #[spirv(push_constant)] params: &IndexParams,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] rays: &[Ray],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] paths: &[PathState],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] photons: &[Photon],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] offsets: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] film: &mut [[f32; 4]],
+) {
+    photon::gather(crate::item(id, groups), params, &HashGrid::new(params), rays, paths, photons, offsets, film);
+}
+
+#[spirv(compute(threads(64)))]
+#[allow(clippy::too_many_arguments)]
+pub fn gather_kd(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(num_workgroups)] groups: UVec3,
+    #[spirv(push_constant)] params: &IndexParams,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] rays: &[Ray],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] paths: &[PathState],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] photons: &[Photon],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] offsets: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] nodes: &[KdNode],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] leaves: &[LeafCells],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] film: &mut [[f32; 4]],
+) {
+    let index = KdCells { nodes, leaves, cells: params.cells };
+    photon::gather(crate::item(id, groups), params, &index, rays, paths, photons, offsets, film);
+}

@@ -1,0 +1,576 @@
+//! Photon mapping as per-item kernels (entry points in the shader crate, the same functions
+//! natively), after Frolov & Ignatenko's GPU scheme and Knaus & Zwicker's progressive radius:
+//!
+//! 1. `emit`: photon i of a pass leaves a light chosen in proportion to power, from a uniform
+//!    point, in a cosine-weighted (area lights, front side), uniform (point lights) or cone
+//!    (spot lights) direction. In groups of 32 photons share one sample, each shifted by a
+//!    lattice point (a toroidal shift, so each photon's marginal distribution is exactly the
+//!    light's emission distribution), or each photon draws its own.
+//! 2. per bounce, after the closest-hit query: `bounce` stores the photon at a diffuse hit
+//!    (atomic append to a bounded record buffer), then continues with Russian roulette by
+//!    albedo; mirrors reflect, glass reflects or refracts (Fresnel). Photons that reached a
+//!    diffuse surface through specular bounces only are caustic photons.
+//! 3. the index: `keys` gives every stored photon its cell (a `PhotonIndex`: hashed grid, or the
+//!    geometry kd-tree's leaves subdivided), the counting sort (`sort`) orders them by cell and
+//!    `permute` writes the records in that order.
+//! 4. `gather`: at each eye path's gather point, the photons within radius r whose surface
+//!    normal lies on the same side, weighted by a kernel, divided by πr²; added to the path's
+//!    radiance, which the film then adds up.
+//!
+//! Random numbers come from the stream (pass seed, bounce, photon): a pass is a function of
+//! its index and the scene only, so passes can run anywhere and be summed.
+use crate::kdtree::KdNode;
+use crate::kernel::{AtomicStore, Store};
+use crate::math::{
+    add3, cosine_direction, cross3, direction_around, dot3, exp2i, floor_u32, fract_pos, mul3, normalize3, scale3, sub3,
+};
+use crate::pod::{
+    Hit, IndexParams, LeafCells, Light, Material, PathState, Photon, PhotonParams, PhotonPath, Triangle, FILTER_CONE,
+    FILTER_EPANECHNIKOV, LIGHT_POINT, LIGHT_SPOT, MAT_MIRROR, PATH_GATHER, PHOTON_ACTIVE, PHOTON_SPECULAR_ONLY,
+    PHOTON_STORE_DIRECT,
+};
+use crate::ray::Ray;
+use crate::rng::{pcg_hash, Rng};
+use crate::shade::{self, choose_light, is_specular, offset, specular_bounce, surface_point, NO_RAY};
+
+/// Photons per coherent group.
+pub const GROUP: u32 = 32;
+/// Bit of `Photon::packed`: a caustic photon.
+pub const CAUSTIC_BIT: u32 = 1 << 30;
+/// The cell of an empty photon slot (left out by the counting sort).
+pub const NO_CELL: u32 = u32::MAX;
+/// Bound on the kd-tree walk of the index (the builder's depth limit is 48).
+const KD_STACK: usize = 64;
+
+/// Increments of the 5-D Kronecker lattice of the lanes (powers of 1/φ₅, φ₅ the real root
+/// of x⁶ = x + 1: Roberts' generalised golden ratio).
+const LATTICE: [f32; 5] = [0.881_271_5, 0.776_639_4, 0.684_430_1, 0.603_168_7, 0.531_555_4];
+
+// ---------------------------------------------------------------------------------------------
+// Compact records
+
+/// RGB9E5 shared-exponent encoding of a non-negative colour (components up to 65 408), each
+/// mantissa rounded up with probability equal to its fraction when `dither` is uniform in
+/// [0, 1): the decoded colour's expectation is the colour itself (no systematic rounding bias).
+#[inline(always)]
+pub fn encode_rgb9e5(c: [f32; 3], dither: f32) -> u32 {
+    const MAX: f32 = 65_408.0;
+    let r = c[0].max(0.0).min(MAX);
+    let g = c[1].max(0.0).min(MAX);
+    let b = c[2].max(0.0).min(MAX);
+    let m = r.max(g).max(b);
+    if !(m > 0.0) {
+        return 0;
+    }
+    // floor(log2 m) from the exponent bits (subnormals count as tiny).
+    let e = ((m.to_bits() >> 23) & 0xff) as i32 - 127;
+    let mut shared = if e < -16 { -16 } else { e } + 16;
+    let mut scale = exp2i(24 - shared);
+    if floor_u32(m * scale + dither) >= 512 {
+        shared += 1;
+        scale *= 0.5;
+    }
+    let q = |x: f32| floor_u32(x * scale + dither).min(511);
+    q(r) | (q(g) << 9) | (q(b) << 18) | ((shared as u32) << 27)
+}
+
+#[inline(always)]
+pub fn decode_rgb9e5(v: u32) -> [f32; 3] {
+    let scale = exp2i((v >> 27) as i32 - 24);
+    [(v & 511) as f32 * scale, ((v >> 9) & 511) as f32 * scale, ((v >> 18) & 511) as f32 * scale]
+}
+
+/// Octahedral encoding of unit vector `n` in 2 × `bits` bits.
+#[inline(always)]
+pub fn encode_oct(n: [f32; 3], bits: u32) -> u32 {
+    let l1 = n[0].abs() + n[1].abs() + n[2].abs();
+    let (mut x, mut y) = (n[0] / l1, n[1] / l1);
+    if n[2] < 0.0 {
+        let (ax, ay) = (x.abs(), y.abs());
+        x = (1.0 - ay) * if x >= 0.0 { 1.0 } else { -1.0 };
+        y = (1.0 - ax) * if y >= 0.0 { 1.0 } else { -1.0 };
+    }
+    let levels = ((1u32 << bits) - 1) as f32;
+    let q = |v: f32| floor_u32((v.max(-1.0).min(1.0) * 0.5 + 0.5) * levels + 0.5);
+    q(x) | (q(y) << bits)
+}
+
+#[inline(always)]
+pub fn decode_oct(v: u32, bits: u32) -> [f32; 3] {
+    let mask = (1u32 << bits) - 1;
+    let levels = mask as f32;
+    let x = (v & mask) as f32 / levels * 2.0 - 1.0;
+    let y = ((v >> bits) & mask) as f32 / levels * 2.0 - 1.0;
+    let z = 1.0 - x.abs() - y.abs();
+    let t = (-z).max(0.0);
+    let x = x + if x >= 0.0 { -t } else { t };
+    let y = y + if y >= 0.0 { -t } else { t };
+    normalize3([x, y, z])
+}
+
+impl Photon {
+    /// A record of a photon of power `power` at `p` on a surface whose normal on the arriving
+    /// side is `n`, arriving along unit `dir` (pointing into the surface).
+    #[inline(always)]
+    pub fn new(p: [f32; 3], power: [f32; 3], n: [f32; 3], dir: [f32; 3], caustic: bool, dither: f32) -> Photon {
+        let from = scale3(dir, -1.0);
+        let packed = encode_oct(n, 8) | (encode_oct(from, 7) << 16) | if caustic { CAUSTIC_BIT } else { 0 };
+        Photon { position: p, power: encode_rgb9e5(power, dither), packed }
+    }
+    #[inline(always)]
+    pub fn power(&self) -> [f32; 3] {
+        decode_rgb9e5(self.power)
+    }
+    /// Unit surface normal on the side the photon arrived from.
+    #[inline(always)]
+    pub fn normal(&self) -> [f32; 3] {
+        decode_oct(self.packed & 0xffff, 8)
+    }
+    /// Unit direction toward where the photon came from.
+    #[inline(always)]
+    pub fn incoming(&self) -> [f32; 3] {
+        decode_oct((self.packed >> 16) & 0x3fff, 7)
+    }
+    #[inline(always)]
+    pub fn is_caustic(&self) -> bool {
+        self.packed & CAUSTIC_BIT != 0
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Emission
+
+/// The five uniform numbers of photon `photon` of a pass: its own (spread 0), or its group's
+/// shifted by its lane's lattice point times `spread`, modulo 1.
+#[inline(always)]
+pub fn emission_numbers(seed: u32, photon: u32, spread: f32) -> [f32; 5] {
+    let mut u = [0.0f32; 5];
+    if spread > 0.0 {
+        let mut rng = Rng::new(seed, photon / GROUP);
+        let lane = (photon % GROUP) as f32;
+        let mut k = 0;
+        while k < 5 {
+            u[k] = fract_pos(rng.next_f32() + fract_pos(lane * LATTICE[k]) * spread);
+            k += 1;
+        }
+    } else {
+        let mut rng = Rng::new(seed ^ 0xB7E1_5163, photon);
+        let mut k = 0;
+        while k < 5 {
+            u[k] = rng.next_f32();
+            k += 1;
+        }
+    }
+    u
+}
+
+/// A photon leaving the lights: its ray and power (1/`emitted` of the lights' total in
+/// expectation), from the five numbers `u` (light, position ×2, direction ×2).
+#[inline(always)]
+pub fn emit_photon(lights: &[Light], light_count: u32, emitted: u32, u: [f32; 5]) -> (Ray, [f32; 3]) {
+    if light_count == 0 || emitted == 0 {
+        return (NO_RAY, [0.0; 3]);
+    }
+    let (li, p_select) = choose_light(lights, light_count, u[0], true);
+    let light = &lights[li];
+    let norm = 1.0 / (p_select * emitted as f32);
+    if light.kind == LIGHT_POINT {
+        let d = direction_around([0.0, 0.0, 1.0], 1.0 - 2.0 * u[3], u[4]);
+        let power = scale3(light.emission, 4.0 * core::f32::consts::PI * norm);
+        return (Ray::new(light.p0, d, 0.0, f32::INFINITY), power);
+    }
+    if light.kind == LIGHT_SPOT {
+        let cos_max = light.e2[0];
+        let cos_theta = 1.0 - u[3] * (1.0 - cos_max);
+        let d = direction_around(light.e1, cos_theta, u[4]);
+        let solid = 2.0 * core::f32::consts::PI * (1.0 - cos_max);
+        let power = scale3(light.emission, shade::spot_falloff(light, d) * solid * norm);
+        return (Ray::new(light.p0, d, 0.0, f32::INFINITY), power);
+    }
+    let s = crate::math::sqrt(u[1]);
+    let q = add3(add3(light.p0, scale3(light.e1, 1.0 - s)), scale3(light.e2, u[2] * s));
+    let n = normalize3(cross3(light.e1, light.e2));
+    let d = cosine_direction(n, u[3], u[4]);
+    // A Lambertian emitter on its front side: power π · area · radiance.
+    let power = scale3(light.emission, core::f32::consts::PI * light.area * norm);
+    (Ray::new(offset(q, n), d, 0.0, f32::INFINITY), power)
+}
+
+/// Photon `i` of the dispatch (`p.first + i` of the pass) leaves a light.
+#[inline(always)]
+pub fn emit<R: Store<Ray> + ?Sized, S: Store<PhotonPath> + ?Sized>(i: u32, p: &PhotonParams, lights: &[Light], rays: &mut R, paths: &mut S) {
+    if i < p.count {
+        let u = emission_numbers(p.seed, p.first + i, p.spread);
+        let (ray, power) = emit_photon(lights, p.light_count, p.emitted, u);
+        let flags = if ray.is_valid() { PHOTON_ACTIVE | PHOTON_SPECULAR_ONLY } else { 0 };
+        rays.store(i as usize, ray);
+        paths.store(i as usize, PhotonPath { power, flags });
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Bounces
+
+/// What happens to photon `i` at its `p.bounce`-th hit (the closest-hit answer `hits[i]`):
+/// stored at a diffuse surface (unless it comes straight from a light and direct light is
+/// left to shadow rays), then continued or absorbed; the counter `counter[0]` counts every
+/// photon to store, including those past `p.capacity` (which are not stored).
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+pub fn bounce<R, S, O, C>(
+    i: u32,
+    p: &PhotonParams,
+    rays: &mut R,
+    hits: &[Hit],
+    tris: &[Triangle],
+    materials: &[Material],
+    paths: &mut S,
+    photons: &mut O,
+    counter: &mut C,
+) where
+    R: Store<Ray> + ?Sized,
+    S: Store<PhotonPath> + ?Sized,
+    O: Store<Photon> + ?Sized,
+    C: AtomicStore + ?Sized,
+{
+    if i >= p.count {
+        return;
+    }
+    let k = i as usize;
+    let mut path = paths.load(k);
+    if path.flags & PHOTON_ACTIVE == 0 {
+        return;
+    }
+    let hit = hits[k];
+    let ray = rays.load(k);
+    let mut next = NO_RAY;
+    let mut flags = 0;
+    if hit.is_hit() {
+        let tri = &tris[hit.prim as usize];
+        let mat = &materials[tri.material as usize];
+        let (pt, n) = surface_point(tri, &hit, &ray);
+        let mut rng = Rng::new(p.seed ^ (p.bounce + 1).wrapping_mul(0x9E37_79B9), p.first + i);
+        let last = p.bounce >= p.max_bounces;
+        if is_specular(mat) {
+            if !last {
+                next = specular_bounce(mat, tri, pt, normalize3(ray.dir), rng.next_f32());
+                if mat.flags & MAT_MIRROR != 0 {
+                    path.power = mul3(path.power, mat.diffuse);
+                }
+                flags = PHOTON_ACTIVE | (path.flags & PHOTON_SPECULAR_ONLY);
+            }
+        } else {
+            if p.bounce > 0 || p.flags & PHOTON_STORE_DIRECT != 0 {
+                let caustic = p.caustic_map != 0 && p.bounce > 0 && path.flags & PHOTON_SPECULAR_ONLY != 0;
+                let slot = counter.atomic_add(0, 1);
+                if slot < p.capacity {
+                    photons.store(slot as usize, Photon::new(pt, path.power, n, normalize3(ray.dir), caustic, rng.next_f32()));
+                }
+            }
+            let a = mat.diffuse;
+            let q = a[0].max(a[1]).max(a[2]).min(1.0);
+            if !last && rng.next_f32() < q {
+                let d = cosine_direction(n, rng.next_f32(), rng.next_f32());
+                next = Ray::new(offset(pt, n), d, 0.0, f32::INFINITY);
+                path.power = mul3(path.power, scale3(a, 1.0 / q));
+                flags = PHOTON_ACTIVE;
+            }
+        }
+    }
+    path.flags = flags;
+    rays.store(k, next);
+    paths.store(k, path);
+}
+
+// ---------------------------------------------------------------------------------------------
+// The index
+
+/// Receives the cells that a gather visits, with the photons in cell order and the cells'
+/// offsets. (The photons are passed along rather than held: a mutable visitor holding storage
+/// buffer slices crashed NVIDIA's SPIR-V compiler, driver 580.)
+pub trait CellVisitor {
+    fn cell(&mut self, c: u32, photons: &[Photon], offsets: &[u32]);
+}
+
+/// Where photons live: the cell of a photon, and the cells a disc query must look at.
+pub trait PhotonIndex {
+    /// The cell (of `map`: 0 global, 1 caustic) that holds a photon at `p`.
+    fn cell(&self, p: [f32; 3], map: u32) -> u32;
+    /// Calls `v.cell(c, photons, offsets)` once for every cell of `map` that may hold a photon
+    /// within `r` of `x` (and possibly others).
+    fn visit<V: CellVisitor>(&self, x: [f32; 3], r: f32, map: u32, photons: &[Photon], offsets: &[u32], v: &mut V);
+}
+
+/// (B) A hashed uniform grid of cell size 2r per map: `cells` buckets per map (a power of
+/// two); a disc of radius r overlaps at most 2 × 2 × 2 cells, buckets visited once each.
+pub struct HashGrid {
+    pub origin: [f32; 3],
+    pub cells: u32,
+    pub cell_size: [f32; 2],
+}
+
+impl HashGrid {
+    #[inline(always)]
+    pub fn new(p: &IndexParams) -> HashGrid {
+        HashGrid { origin: p.bounds_min, cells: p.cells, cell_size: [2.0 * p.radius[0], 2.0 * p.radius[1]] }
+    }
+    #[inline(always)]
+    fn coord(&self, x: f32, o: f32, inv: f32) -> u32 {
+        // Cells counted from one below the scene box, so points slightly outside stay >= 0.
+        floor_u32((x - o) * inv + 1.0)
+    }
+    #[inline(always)]
+    fn bucket(&self, c: [u32; 3], map: u32) -> u32 {
+        let h = pcg_hash(c[0] ^ pcg_hash(c[1] ^ pcg_hash(c[2])));
+        (h & (self.cells - 1)) + map * self.cells
+    }
+}
+
+impl PhotonIndex for HashGrid {
+    #[inline(always)]
+    fn cell(&self, p: [f32; 3], map: u32) -> u32 {
+        let inv = 1.0 / self.cell_size[map as usize];
+        let o = self.origin;
+        self.bucket([self.coord(p[0], o[0], inv), self.coord(p[1], o[1], inv), self.coord(p[2], o[2], inv)], map)
+    }
+    #[inline(always)]
+    fn visit<V: CellVisitor>(&self, x: [f32; 3], r: f32, map: u32, photons: &[Photon], offsets: &[u32], v: &mut V) {
+        let inv = 1.0 / self.cell_size[map as usize];
+        let o = self.origin;
+        let lo = [self.coord(x[0] - r, o[0], inv), self.coord(x[1] - r, o[1], inv), self.coord(x[2] - r, o[2], inv)];
+        let hi = [self.coord(x[0] + r, o[0], inv), self.coord(x[1] + r, o[1], inv), self.coord(x[2] + r, o[2], inv)];
+        let mut seen = [NO_CELL; 8];
+        let mut n = 0;
+        let mut k = 0u32;
+        while k < 8 {
+            let c = [lo[0] + (k & 1), lo[1] + ((k >> 1) & 1), lo[2] + ((k >> 2) & 1)];
+            if c[0] <= hi[0] && c[1] <= hi[1] && c[2] <= hi[2] {
+                let b = self.bucket(c, map);
+                let mut dup = false;
+                let mut j = 0;
+                while j < n {
+                    dup |= seen[j] == b;
+                    j += 1;
+                }
+                if !dup {
+                    seen[n] = b;
+                    n += 1;
+                    v.cell(b, photons, offsets);
+                }
+            }
+            k += 1;
+        }
+    }
+}
+
+/// (A) The paper's index: the geometry kd-tree's leaves, each subdivided into a grid of cells
+/// of about the gather radius (`LeafCells`, one entry per node); a photon's leaf is found by
+/// point location from the root, a query's by walking the tree with the query box.
+pub struct KdCells<'a> {
+    pub nodes: &'a [KdNode],
+    pub leaves: &'a [LeafCells],
+    pub cells: u32,
+}
+
+#[inline(always)]
+fn dims(l: &LeafCells) -> [u32; 3] {
+    [l.dims & 1023, (l.dims >> 10) & 1023, (l.dims >> 20) & 1023]
+}
+
+/// Cell coordinate of `x` along one axis of a leaf (clamped into the leaf).
+#[inline(always)]
+fn leaf_coord(x: f32, lo: f32, hi: f32, n: u32) -> u32 {
+    let w = hi - lo;
+    let t = if w > 0.0 { (x - lo) / w * n as f32 } else { 0.0 };
+    floor_u32(t).min(n - 1)
+}
+
+impl KdCells<'_> {
+    #[inline(always)]
+    fn locate(&self, p: [f32; 3]) -> usize {
+        let mut node = 0usize;
+        let mut steps = 0;
+        while !self.nodes[node].is_leaf() && steps < KD_STACK {
+            let nd = self.nodes[node];
+            let c = nd.first_child() as usize;
+            node = if p[nd.axis()] < nd.split() { c } else { c + 1 };
+            steps += 1;
+        }
+        node
+    }
+}
+
+impl PhotonIndex for KdCells<'_> {
+    #[inline(always)]
+    fn cell(&self, p: [f32; 3], map: u32) -> u32 {
+        let l = &self.leaves[self.locate(p)];
+        let d = dims(l);
+        if d[0] == 0 {
+            return NO_CELL;
+        }
+        let c = [leaf_coord(p[0], l.lo[0], l.hi[0], d[0]), leaf_coord(p[1], l.lo[1], l.hi[1], d[1]), leaf_coord(p[2], l.lo[2], l.hi[2], d[2])];
+        l.base + (c[2] * d[1] + c[1]) * d[0] + c[0] + map * self.cells
+    }
+    #[inline(always)]
+    fn visit<V: CellVisitor>(&self, x: [f32; 3], r: f32, map: u32, photons: &[Photon], offsets: &[u32], v: &mut V) {
+        let lo = sub3(x, [r; 3]);
+        let hi = add3(x, [r; 3]);
+        let mut stack = [0u32; KD_STACK];
+        let mut top = 1usize;
+        let mut guard = 0usize;
+        let limit = self.nodes.len() + 1;
+        while top > 0 && guard < limit {
+            guard += 1;
+            top -= 1;
+            let node = stack[top] as usize;
+            let nd = self.nodes[node];
+            if !nd.is_leaf() {
+                let c = nd.first_child();
+                let (a, s) = (nd.axis(), nd.split());
+                if hi[a] >= s && top < KD_STACK {
+                    stack[top] = c + 1;
+                    top += 1;
+                }
+                if lo[a] < s && top < KD_STACK {
+                    stack[top] = c;
+                    top += 1;
+                }
+                continue;
+            }
+            let l = &self.leaves[node];
+            let d = dims(l);
+            if d[0] == 0 {
+                continue;
+            }
+            let a = [leaf_coord(lo[0], l.lo[0], l.hi[0], d[0]), leaf_coord(lo[1], l.lo[1], l.hi[1], d[1]), leaf_coord(lo[2], l.lo[2], l.hi[2], d[2])];
+            let b = [leaf_coord(hi[0], l.lo[0], l.hi[0], d[0]), leaf_coord(hi[1], l.lo[1], l.hi[1], d[1]), leaf_coord(hi[2], l.lo[2], l.hi[2], d[2])];
+            let mut z = a[2];
+            while z <= b[2] {
+                let mut y = a[1];
+                while y <= b[1] {
+                    let mut xx = a[0];
+                    while xx <= b[0] {
+                        v.cell(l.base + (z * d[1] + y) * d[0] + xx + map * self.cells, photons, offsets);
+                        xx += 1;
+                    }
+                    y += 1;
+                }
+                z += 1;
+            }
+        }
+    }
+}
+
+/// The map a photon belongs to: 1 (caustic) when there is a caustic map and it is a caustic
+/// photon, else 0.
+#[inline(always)]
+fn map_of(p: &IndexParams, ph: &Photon) -> u32 {
+    if p.maps > 1 && ph.is_caustic() {
+        1
+    } else {
+        0
+    }
+}
+
+/// The cell of photon slot `i` (`NO_CELL` past the stored photons).
+#[inline(always)]
+pub fn keys<I: PhotonIndex, K: Store<u32> + ?Sized>(i: u32, p: &IndexParams, index: &I, photons: &[Photon], counter: &[u32], keys: &mut K) {
+    if i < p.count {
+        let stored = counter[0].min(p.count);
+        let key = if i < stored {
+            let ph = &photons[i as usize];
+            index.cell(ph.position, map_of(p, ph))
+        } else {
+            NO_CELL
+        };
+        keys.store(i as usize, key);
+    }
+}
+
+/// The photons in cell order: `sorted[j] = photons[order[j]]` for the `offsets[cells·maps]`
+/// placed ones.
+#[inline(always)]
+pub fn permute<O: Store<Photon> + ?Sized>(i: u32, p: &IndexParams, photons: &[Photon], order: &[u32], offsets: &[u32], sorted: &mut O) {
+    let placed = offsets[(p.cells * p.maps) as usize];
+    if i < p.count && i < placed {
+        sorted.store(i as usize, photons[order[i as usize] as usize]);
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Gather
+
+/// Sums the photons of visited cells within `r2` of `x` on the side `n`.
+struct Sum {
+    x: [f32; 3],
+    n: [f32; 3],
+    r2: f32,
+    filter: u32,
+    sum: [f32; 3],
+    found: u32,
+}
+
+impl CellVisitor for Sum {
+    #[inline(always)]
+    fn cell(&mut self, c: u32, photons: &[Photon], offsets: &[u32]) {
+        let (a, b) = (offsets[c as usize], offsets[c as usize + 1]);
+        let mut j = a;
+        while j < b {
+            let ph = &photons[j as usize];
+            let d = sub3(ph.position, self.x);
+            let d2 = dot3(d, d);
+            if d2 <= self.r2 && dot3(ph.normal(), self.n) > 0.5 {
+                let w = if self.filter == FILTER_CONE {
+                    3.0 * (1.0 - crate::math::sqrt(d2 / self.r2))
+                } else if self.filter == FILTER_EPANECHNIKOV {
+                    2.0 * (1.0 - d2 / self.r2)
+                } else {
+                    1.0
+                };
+                self.sum = add3(self.sum, scale3(ph.power(), w));
+                self.found += 1;
+            }
+            j += 1;
+        }
+    }
+}
+
+/// Irradiance at `x` (normal `n` on the viewing side) from one map: Σ w·Φ / (π r²).
+#[inline(always)]
+pub fn irradiance<I: PhotonIndex>(index: &I, p: &IndexParams, photons: &[Photon], offsets: &[u32], x: [f32; 3], n: [f32; 3], map: u32) -> ([f32; 3], u32) {
+    let r = p.radius[map as usize];
+    let mut s = Sum { x, n, r2: r * r, filter: p.filter, sum: [0.0; 3], found: 0 };
+    index.visit(x, r, map, photons, offsets, &mut s);
+    (scale3(s.sum, 1.0 / (core::f32::consts::PI * r * r)), s.found)
+}
+
+/// Path `i`: if it ended at a gather point, adds the reflected radiance its photons give
+/// (throughput already holds albedo/π) to its radiance, then adds the path to the film.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+pub fn gather<I: PhotonIndex, O: Store<[f32; 4]> + ?Sized>(
+    i: u32,
+    p: &IndexParams,
+    index: &I,
+    rays: &[Ray],
+    paths: &[PathState],
+    photons: &[Photon],
+    offsets: &[u32],
+    film: &mut O,
+) {
+    if i >= p.count {
+        return;
+    }
+    let k = i as usize;
+    let path = paths[k];
+    let mut c = path.radiance;
+    if path.flags & PATH_GATHER != 0 {
+        let g = rays[k];
+        let mut e = irradiance(index, p, photons, offsets, g.origin, g.dir, 0).0;
+        if p.maps > 1 {
+            e = add3(e, irradiance(index, p, photons, offsets, g.origin, g.dir, 1).0);
+        }
+        c = add3(c, mul3(path.throughput, e));
+    }
+    crate::render::film_add(k, p.sample, c, film);
+}

@@ -1,0 +1,419 @@
+//! Photon mapping against what it must reproduce: the lights' emission distribution
+//! (chi-square), the index against brute force, irradiance under a point light, a furnace,
+//! convergence to the path-traced reference, and the same photons and images on the native
+//! runtime and the GPU (lavapipe in CI).
+mod common;
+
+use glam::Vec3;
+use kdray::accel::Accel;
+use kdray::integrator::path::{self, PathOptions};
+use kdray::integrator::photon::{self as pm, IndexKind, PhotonMap, PhotonOptions};
+use kdray::integrator::RenderOutput;
+use kdray::kdtree::{self, BuildOptions, KdTreeData};
+use kdray::runtime::cpu::NATIVE;
+use kdray::scene::{self, CameraSpec, PointLight, Scene, Spot};
+use kdray::{Runtime, Tracer};
+use kdray_shared::kdtree::Algorithm;
+use kdray_shared::photon::{emission_numbers, emit_photon, irradiance, HashGrid, KdCells, PhotonIndex};
+use kdray_shared::{Material, Photon, INDEX_KD};
+
+fn runtimes() -> Vec<&'static dyn Runtime> {
+    let mut v: Vec<&'static dyn Runtime> = vec![&NATIVE];
+    if let Some(g) = common::gpu() {
+        v.push(g);
+    }
+    v
+}
+
+fn tree(s: &Scene) -> KdTreeData {
+    kdtree::try_build(&s.triangles, &BuildOptions::default()).unwrap()
+}
+
+fn hidden() -> indicatif::ProgressBar {
+    indicatif::ProgressBar::hidden()
+}
+
+/// Pearson's statistic of `counts` against expected probabilities `p` (summing to 1).
+fn chi2(counts: &[u64], p: &[f64]) -> f64 {
+    let n: u64 = counts.iter().sum();
+    counts.iter().zip(p).map(|(&c, &q)| (c as f64 - n as f64 * q).powi(2) / (n as f64 * q)).sum()
+}
+
+/// Far beyond chance for `dof` degrees of freedom (about 6 standard deviations).
+fn chi2_bound(dof: usize) -> f64 {
+    dof as f64 + 6.0 * (2.0 * dof as f64).sqrt()
+}
+
+fn uniform(k: usize) -> Vec<f64> {
+    vec![1.0 / k as f64; k]
+}
+
+fn bin(x: f64, lo: f64, hi: f64, k: usize) -> usize {
+    (((x - lo) / (hi - lo) * k as f64) as usize).min(k - 1)
+}
+
+#[test]
+fn emitted_photons_follow_the_lights_emission() {
+    // A right-triangle light in the plane y = 1 facing +y, a point light and a spot light.
+    let mut s = Scene::new("lights", CameraSpec::framing(Vec3::ZERO, Vec3::ONE));
+    let m = s.add_material("emitter", Material { diffuse: [0.5; 3], emission: [2.0, 1.0, 0.5], ..Default::default() });
+    s.add_triangle([Vec3::new(0.0, 1.0, 0.0), Vec3::new(0.0, 1.0, 1.0), Vec3::new(1.0, 1.0, 0.0)], m, &|| "light".into()).unwrap();
+    s.point_lights.push(PointLight { position: Vec3::new(5.0, 5.0, 5.0), intensity: Vec3::new(0.3, 0.2, 0.1), spot: None });
+    let axis = Vec3::new(0.0, -1.0, 0.0);
+    s.point_lights.push(PointLight {
+        position: Vec3::new(-5.0, 5.0, 5.0),
+        intensity: Vec3::new(1.0, 1.0, 1.0),
+        spot: Some(Spot { direction: axis, cone_deg: 30.0, falloff_start_deg: 30.0 }),
+    });
+    let lights = s.lights();
+    assert_eq!(lights.len(), 3);
+    let total: f64 = lights.iter().map(scene::power).sum();
+    let expected: Vec<f64> = lights.iter().map(|l| scene::power(l) / total).collect();
+    // Photons of one lane across groups are independent, each with the lights' distribution
+    // (the toroidal shift); photons of one group are not independent of each other, so
+    // grouped emission is tested lane by lane.
+    let n = 200_000u32;
+    for (spread, lane) in [(0.0f32, None), (1.0, Some(0)), (1.0, Some(13)), (0.25, Some(31)), (0.25, Some(5))] {
+        let (mut which, mut x_bins, mut cos2, mut phi) = ([0u64; 3], [0u64; 10], [0u64; 10], [0u64; 8]);
+        let (mut sphere_z, mut cone_z) = ([0u64; 10], [0u64; 10]);
+        let mut power = [0.0f64; 3];
+        for k in 0..n {
+            let i = match lane {
+                None => k,
+                Some(l) => k * 32 + l,
+            };
+            let (ray, p) = emit_photon(&lights, 3, n, emission_numbers(77, i, spread));
+            for c in 0..3 {
+                power[c] += p[c] as f64;
+            }
+            let (o, d) = (Vec3::from(ray.origin), Vec3::from(ray.dir).normalize());
+            if o.distance(Vec3::new(5.0, 5.0, 5.0)) < 1e-6 {
+                which[1] += 1;
+                sphere_z[bin(d.z as f64, -1.0, 1.0, 10)] += 1;
+            } else if o.distance(Vec3::new(-5.0, 5.0, 5.0)) < 1e-6 {
+                which[2] += 1;
+                let c = d.dot(axis) as f64;
+                let cmax = 30f64.to_radians().cos();
+                assert!(c >= cmax - 1e-6, "spot photon outside its cone: cos {c}");
+                cone_z[bin(c, cmax, 1.0, 10)] += 1;
+            } else {
+                which[0] += 1;
+                assert!((o.y - 1.0).abs() < 1e-4 && o.x >= -1e-6 && o.z >= -1e-6 && o.x + o.z <= 1.0 + 1e-5, "{o}");
+                x_bins[bin(o.x as f64, 0.0, 1.0, 10)] += 1;
+                assert!(d.y > 0.0, "an area light photon leaves from its back side: {d}");
+                let c = d.y as f64;
+                cos2[bin(c * c, 0.0, 1.0, 10)] += 1;
+                phi[bin((d.z as f64).atan2(d.x as f64), -std::f64::consts::PI, std::f64::consts::PI, 8)] += 1;
+            }
+        }
+        // The x marginal of a uniform point on the triangle: density 2(1 − x).
+        let px: Vec<f64> = (0..10).map(|k| (1.0 - k as f64 / 10.0).powi(2) - (1.0 - (k + 1) as f64 / 10.0).powi(2)).collect();
+        for (name, counts, p) in [
+            ("light choice ∝ power", &which[..], expected.clone()),
+            ("position on the triangle", &x_bins[..], px),
+            ("cos² θ (cosine-weighted)", &cos2[..], uniform(10)),
+            ("azimuth", &phi[..], uniform(8)),
+            ("point light z (uniform sphere)", &sphere_z[..], uniform(10)),
+            ("spot light cos θ (uniform cone)", &cone_z[..], uniform(10)),
+        ] {
+            let x = chi2(counts, &p);
+            assert!(x < chi2_bound(p.len() - 1), "spread {spread}, lane {lane:?}: {name}: chi-square {x:.1} over {} bins ({counts:?})", p.len());
+        }
+        // Energy: the photons carry the lights' power (luminance-weighted selection, RGB power).
+        let want: [f64; 3] = [0, 1, 2].map(|c| {
+            lights
+                .iter()
+                .map(|l| scene::power(l) * l.emission[c] as f64 / (0.2126 * l.emission[0] as f64 + 0.7152 * l.emission[1] as f64 + 0.0722 * l.emission[2] as f64))
+                .sum()
+        });
+        for c in 0..3 {
+            assert!((power[c] / want[c] - 1.0).abs() < 0.01, "spread {spread}, lane {lane:?}: channel {c}: photons carry {} W, lights emit {} W", power[c], want[c]);
+        }
+    }
+}
+
+fn small_options(index: IndexKind, photons: u32) -> PhotonOptions {
+    PhotonOptions { photons, passes: 1, index, ..Default::default() }
+}
+
+/// Checks an index built on `rt` against the records: a permutation, every photon in its own
+/// cell, and gathers equal to brute force.
+fn check_index(map: &PhotonMap, tree: &KdTreeData, records: &[Photon], what: &str) {
+    let (sorted, offsets) = map.read_index().unwrap();
+    let key = |p: &Photon| (p.position.map(f32::to_bits), p.power, p.packed);
+    let mut a: Vec<_> = records.iter().map(key).collect();
+    let mut b: Vec<_> = sorted.iter().map(key).collect();
+    a.sort();
+    b.sort();
+    assert!(a == b, "{what}: the sorted photons are not the stored ones ({} vs {})", a.len(), b.len());
+    let p = map.index_params(0, 0);
+    let table = map.leaf_table(0);
+    let kd;
+    let grid = HashGrid::new(&p);
+    let index: &dyn Fn([f32; 3], u32) -> u32 = if p.kind == INDEX_KD {
+        kd = KdCells { nodes: &tree.nodes, leaves: table.as_deref().unwrap(), cells: p.cells };
+        &|x, m| kd.cell(x, m)
+    } else {
+        &|x, m| grid.cell(x, m)
+    };
+    for c in 0..(offsets.len() - 1) {
+        for ph in &sorted[offsets[c] as usize..offsets[c + 1] as usize] {
+            let m = if p.maps > 1 && ph.is_caustic() { 1 } else { 0 };
+            assert_eq!(index(ph.position, m), c as u32, "{what}: a photon in the wrong cell");
+        }
+    }
+    // Gathers at photon positions (offset) against brute force.
+    let gather = |x: [f32; 3], n: [f32; 3], m: u32| -> ([f32; 3], u32) {
+        if p.kind == INDEX_KD {
+            let kd = KdCells { nodes: &tree.nodes, leaves: table.as_deref().unwrap(), cells: p.cells };
+            irradiance(&kd, &p, &sorted, &offsets, x, n, m)
+        } else {
+            irradiance(&grid, &p, &sorted, &offsets, x, n, m)
+        }
+    };
+    let mut nonempty = 0;
+    for (k, ph) in sorted.iter().step_by((sorted.len() / 400).max(1)).enumerate() {
+        let m = if p.maps > 1 && ph.is_caustic() { 1 } else { 0 };
+        let r = p.radius[m as usize];
+        let x = [ph.position[0] + 0.3 * r * ((k % 3) as f32 - 1.0), ph.position[1], ph.position[2] + 0.2 * r];
+        let n = ph.normal();
+        let (e, found) = gather(x, n, m);
+        let (mut want, mut count) = ([0.0f64; 3], 0);
+        for q in sorted.iter().filter(|q| (p.maps > 1 && q.is_caustic()) as u32 == m) {
+            let d = Vec3::from(q.position) - Vec3::from(x);
+            if d.length_squared() <= r * r && Vec3::from(q.normal()).dot(Vec3::from(n)) > 0.5 {
+                count += 1;
+                for c in 0..3 {
+                    want[c] += q.power()[c] as f64;
+                }
+            }
+        }
+        assert_eq!(found, count, "{what}: gather at {x:?} found {found} photons, brute force {count}");
+        let scale = 1.0 / (std::f64::consts::PI * (r as f64).powi(2));
+        for c in 0..3 {
+            let w = want[c] * scale;
+            assert!((e[c] as f64 - w).abs() <= 1e-4 * w + 1e-30, "{what}: irradiance {} vs brute force {w}", e[c]);
+        }
+        nonempty += (count > 0) as usize;
+    }
+    assert!(nonempty > 100, "{what}: only {nonempty} gathers found photons");
+}
+
+#[test]
+fn photon_indices_hold_every_photon_in_its_cell_and_gather_like_brute_force() {
+    for spec in ["cornell", "cornell-glass"] {
+        let s = scene::load(spec).unwrap();
+        let tr = tree(&s);
+        for rt in runtimes() {
+            let t = Tracer::new(rt, &s, Some(&tr)).unwrap();
+            for kind in [IndexKind::Grid, IndexKind::Kd] {
+                let what = format!("{spec} on {}, {kind:?} index", rt.name());
+                let mut map = PhotonMap::new(&t, Accel::kd(Algorithm::ShortStack(3)), Some(&tr), s.surface_area(), small_options(kind, 20_000)).unwrap();
+                let stored = map.trace_and_index(0).unwrap();
+                let records = map.read_records().unwrap();
+                assert_eq!(records.len(), stored as usize, "{what}");
+                assert!(stored > 20_000, "{what}: only {stored} photons stored");
+                if spec == "cornell-glass" {
+                    assert!(records.iter().any(|p| p.is_caustic()), "{what}: no caustic photon");
+                }
+                check_index(&map, &tr, &records, &what);
+            }
+        }
+    }
+}
+
+/// A 40 × 40 plane (albedo 0.5) at z = 0 under a point light of intensity 1 at height 1, seen
+/// from above.
+fn plane_scene() -> Scene {
+    let mut s = Scene::new(
+        "plane",
+        CameraSpec { eye: Vec3::new(0.0, 0.0, 3.0), look_at: Vec3::ZERO, up: Vec3::Y, fov_y_deg: 40.0 },
+    );
+    let m = s.add_material("grey", Material { diffuse: [0.5; 3], ..Default::default() });
+    s.add_quad([Vec3::new(-20.0, -20.0, 0.0), Vec3::new(20.0, -20.0, 0.0), Vec3::new(20.0, 20.0, 0.0), Vec3::new(-20.0, 20.0, 0.0)], m).unwrap();
+    s.point_lights.push(PointLight { position: Vec3::new(0.0, 0.0, 1.0), intensity: Vec3::ONE, spot: None });
+    s
+}
+
+/// Where the ray through pixel `i`'s centre meets the plane z = 0.
+fn plane_point(cam: &kdray_shared::Camera, i: u32) -> Vec3 {
+    let r = kdray_shared::camera::primary_ray(cam, i);
+    let (o, d) = (Vec3::from(r.origin), Vec3::from(r.dir));
+    o + d * (-o.z / d.z)
+}
+
+#[test]
+fn photon_map_irradiance_under_a_point_light_is_i_cos_over_d_squared() {
+    let s = plane_scene();
+    let size = 32;
+    let cam = s.camera.to_pod(size, size);
+    for rt in runtimes() {
+        let t = Tracer::new(rt, &s, None).unwrap();
+        let (photons, passes) = if rt.is_native() { (1 << 20, 8) } else { (1 << 19, 4) };
+        let o = PhotonOptions { photons, passes, radius: Some(0.05), photon_direct: true, ..Default::default() };
+        let mut map = PhotonMap::new(&t, Accel::BRUTE, None, s.surface_area(), o).unwrap();
+        let (img, _) = pm::render(&mut map, &cam, &hidden()).unwrap();
+        let (mut sum, mut sq, mut n) = (0.0f64, 0.0f64, 0);
+        for i in 0..size * size {
+            let x = plane_point(&cam, i);
+            let rho = (x.x * x.x + x.y * x.y).sqrt();
+            if rho > 1.0 {
+                continue;
+            }
+            let d2 = (x.x * x.x + x.y * x.y + 1.0) as f64;
+            let e = 1.0 / d2 * (1.0 / d2.sqrt());
+            let want = 0.5 / std::f64::consts::PI * e;
+            let ratio = img.radiance[i as usize][0] as f64 / want;
+            sum += ratio;
+            sq += (ratio - 1.0).powi(2);
+            n += 1;
+        }
+        let (mean, rms) = (sum / n as f64, (sq / n as f64).sqrt());
+        eprintln!("{}: {n} pixels, irradiance / (I cos θ / d²) = {mean:.4} on average, {rms:.4} rms error", rt.name());
+        assert!(n > 200);
+        assert!((mean - 1.0).abs() < 0.01, "{}: mean ratio {mean}", rt.name());
+        assert!(rms < 0.05, "{}: rms error {rms}", rt.name());
+    }
+}
+
+/// A closed cube (side 2, centred at the origin) whose every face emits radiance 1 and reflects
+/// with albedo 0.5: the radiance everywhere inside is 1 / (1 − 0.5) = 2.
+fn furnace() -> Scene {
+    let mut s = Scene::new(
+        "furnace",
+        CameraSpec { eye: Vec3::new(0.0, 0.0, 0.9), look_at: Vec3::new(0.0, 0.0, -1.0), up: Vec3::Y, fov_y_deg: 60.0 },
+    );
+    let m = s.add_material("wall", Material { diffuse: [0.5; 3], emission: [1.0; 3], ..Default::default() });
+    let c = |x: f32, y: f32, z: f32| Vec3::new(x, y, z);
+    for q in [
+        [c(-1., -1., -1.), c(1., -1., -1.), c(1., 1., -1.), c(-1., 1., -1.)],
+        [c(-1., -1., 1.), c(-1., 1., 1.), c(1., 1., 1.), c(1., -1., 1.)],
+        [c(-1., -1., -1.), c(-1., 1., -1.), c(-1., 1., 1.), c(-1., -1., 1.)],
+        [c(1., -1., -1.), c(1., -1., 1.), c(1., 1., 1.), c(1., 1., -1.)],
+        [c(-1., -1., -1.), c(-1., -1., 1.), c(1., -1., 1.), c(1., -1., -1.)],
+        [c(-1., 1., -1.), c(1., 1., -1.), c(1., 1., 1.), c(-1., 1., 1.)],
+    ] {
+        s.add_quad(q, m).unwrap();
+    }
+    s
+}
+
+/// The mean and rms deviation from 2 of the pixels whose centre ray meets the back wall away
+/// from its edges.
+fn furnace_error(img: &RenderOutput, cam: &kdray_shared::Camera) -> (f64, f64, usize) {
+    let (mut sum, mut sq, mut n) = (0.0, 0.0, 0);
+    for i in 0..cam.width * cam.height {
+        let r = kdray_shared::camera::primary_ray(cam, i);
+        let (o, d) = (Vec3::from(r.origin), Vec3::from(r.dir));
+        let x = o + d * ((-1.0 - o.z) / d.z);
+        if x.x.abs() > 0.8 || x.y.abs() > 0.8 {
+            continue;
+        }
+        let v = img.radiance[i as usize][1] as f64;
+        sum += v;
+        sq += (v - 2.0).powi(2);
+        n += 1;
+    }
+    (sum / n as f64, (sq / n as f64).sqrt(), n)
+}
+
+#[test]
+fn furnace_radiance_is_emission_over_one_minus_albedo() {
+    let s = furnace();
+    let size = 24;
+    let cam = s.camera.to_pod(size, size);
+    for rt in runtimes() {
+        let t = Tracer::new(rt, &s, None).unwrap();
+        let (photons, passes) = if rt.is_native() { (1 << 19, 8) } else { (1 << 18, 4) };
+        let o = PhotonOptions { photons, passes, radius: Some(0.05), ..Default::default() };
+        let mut map = PhotonMap::new(&t, Accel::BRUTE, None, s.surface_area(), o).unwrap();
+        let (img, _) = pm::render(&mut map, &cam, &hidden()).unwrap();
+        let (mean, rms, n) = furnace_error(&img, &cam);
+        eprintln!("{}: photon mapping, {n} pixels: mean {mean:.4} (want 2), rms deviation {rms:.4}", rt.name());
+        assert!((mean / 2.0 - 1.0).abs() < 0.01, "{}: photon-mapped furnace mean {mean}", rt.name());
+        let img = path::render(&t, Accel::BRUTE, &cam, &PathOptions::path(3, 64, if rt.is_native() { 512 } else { 256 }), &hidden()).unwrap();
+        let (mean, rms, n) = furnace_error(&img, &cam);
+        eprintln!("{}: path tracing, {n} pixels: mean {mean:.4} (want 2), rms deviation {rms:.4}", rt.name());
+        assert!((mean / 2.0 - 1.0).abs() < 0.01, "{}: path-traced furnace mean {mean}", rt.name());
+    }
+}
+
+fn error(a: &RenderOutput, b: &RenderOutput) -> f64 {
+    let f = |o: &RenderOutput| o.radiance.iter().map(|c| [c[0], c[1], c[2]]).collect::<Vec<_>>();
+    kdray::image_out::image_error(&f(a), &f(b)).rel_rmse
+}
+
+#[test]
+fn progressive_photon_mapping_converges_to_the_path_traced_reference() {
+    let s = scene::load("cornell").unwrap();
+    let tr = tree(&s);
+    let size = 32;
+    let cam = s.camera.to_pod(size, size);
+    let t = Tracer::new(&NATIVE, &s, Some(&tr)).unwrap();
+    let accel = Accel::kd(Algorithm::ShortStack(3));
+    let reference = path::render(&t, accel, &cam, &PathOptions::path(11, 32, 4096), &hidden()).unwrap();
+    let mut errors = Vec::new();
+    for passes in [1, 4, 16] {
+        let o = PhotonOptions { photons: 1 << 16, passes, ..Default::default() };
+        let mut map = PhotonMap::new(&t, accel, Some(&tr), s.surface_area(), o).unwrap();
+        let (img, _) = pm::render(&mut map, &cam, &hidden()).unwrap();
+        errors.push(error(&img, &reference));
+    }
+    eprintln!("relative RMSE against the path-traced reference after 1, 4, 16 passes: {errors:?}");
+    // Early passes are dominated by the eye samples at the light's edges (one per pass).
+    assert!(errors[1] < errors[0] && errors[2] < 0.8 * errors[1] && errors[2] < 0.6 * errors[0], "{errors:?}");
+}
+
+#[test]
+fn native_and_gpu_trace_the_same_photons_and_render_the_same_image() {
+    let Some(g) = common::gpu() else { return };
+    for spec in ["cornell", "cornell-glass"] {
+        let s = scene::load(spec).unwrap();
+        let tr = tree(&s);
+        let accel = Accel::kd(Algorithm::ShortStack(3));
+        let records = |rt: &dyn Runtime| {
+            let t = Tracer::new(rt, &s, Some(&tr)).unwrap();
+            let mut map = PhotonMap::new(&t, accel, Some(&tr), s.surface_area(), small_options(IndexKind::Grid, 50_000)).unwrap();
+            map.trace_and_index(0).unwrap();
+            map.read_records().unwrap()
+        };
+        let (a, b) = (records(&NATIVE), records(g));
+        // Match by position: a grid of cells of 1e-3 of the scene size around each native photon.
+        let scale = 560.0f32;
+        let cell = |p: [f32; 3]| p.map(|x| (x / (scale * 1e-3)).floor() as i64);
+        let mut grid: std::collections::HashMap<[i64; 3], Vec<[f32; 3]>> = Default::default();
+        for p in &a {
+            grid.entry(cell(p.position)).or_default().push(p.position);
+        }
+        let mut same = 0;
+        for p in &b {
+            let c = cell(p.position);
+            let mut found = false;
+            for dx in -1..=1 {
+                for dy in -1..=1 {
+                    for dz in -1..=1 {
+                        if let Some(v) = grid.get(&[c[0] + dx, c[1] + dy, c[2] + dz]) {
+                            found |= v.iter().any(|q| (Vec3::from(*q) - Vec3::from(p.position)).abs().max_element() <= 1e-4 * scale);
+                        }
+                    }
+                }
+            }
+            same += found as usize;
+        }
+        let share = same as f64 / a.len().max(b.len()) as f64;
+        eprintln!("{spec}: {} native and {} GPU photons, {:.4} % at the same position", a.len(), b.len(), share * 100.0);
+        assert!(share >= 0.999, "{spec}: only {:.3} % of the photons agree", share * 100.0);
+        // Images: the same photons and eye paths; sums may differ in order only.
+        let size = 48;
+        let cam = s.camera.to_pod(size, size);
+        let render = |rt: &dyn Runtime| {
+            let t = Tracer::new(rt, &s, Some(&tr)).unwrap();
+            let o = PhotonOptions { photons: 1 << 16, passes: 2, ..Default::default() };
+            let mut map = PhotonMap::new(&t, accel, Some(&tr), s.surface_area(), o).unwrap();
+            pm::render(&mut map, &cam, &hidden()).unwrap().0
+        };
+        let e = error(&render(g), &render(&NATIVE));
+        eprintln!("{spec}: GPU vs native image: relative RMSE {:.5} %", e * 100.0);
+        assert!(e < 0.002, "{spec}: GPU and native images differ by {:.3} %", e * 100.0);
+    }
+}
