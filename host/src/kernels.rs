@@ -381,7 +381,7 @@ impl Kernel for Film<'_> {
         vec![read("paths", self.paths), write("radiance", self.radiance)]
     }
     fn threads(&self) -> u32 {
-        self.params.count
+        self.params.pixels()
     }
     fn run(&self, t: u32) {
         // SAFETY: called by the native runtime during the dispatch of this pass, which holds
@@ -708,16 +708,15 @@ impl Kernel for PermutePhotons<'_> {
     }
 }
 
-/// The photon-map estimate at every gather point, added with the path's radiance to the film
+/// The photon-map estimate at every gather point, added to the path's radiance
 /// (`photon::gather`).
 pub struct Gather<'a> {
     pub params: IndexParams,
     pub index: IndexBinds<'a>,
     pub rays: &'a Buffer<Ray>,
-    pub paths: &'a Buffer<PathState>,
     pub photons: &'a Buffer<Photon>,
     pub offsets: &'a Buffer<u32>,
-    pub film: &'a Buffer<[f32; 4]>,
+    pub paths: &'a Buffer<PathState>,
 }
 
 impl Kernel for Gather<'_> {
@@ -728,9 +727,9 @@ impl Kernel for Gather<'_> {
         bytemuck::bytes_of(&self.params)
     }
     fn bindings(&self) -> Vec<Bind<'_>> {
-        let mut b = vec![read("rays", self.rays), read("paths", self.paths), read("photons", self.photons), read("offsets", self.offsets)];
+        let mut b = vec![read("rays", self.rays), read("photons", self.photons), read("offsets", self.offsets)];
         b.extend(self.index.binds());
-        b.push(write("film", self.film));
+        b.push(write("paths", self.paths));
         b
     }
     fn threads(&self) -> u32 {
@@ -738,15 +737,14 @@ impl Kernel for Gather<'_> {
     }
     fn run(&self, t: u32) {
         // SAFETY: called by the native runtime during the dispatch of this pass, which holds
-        // its bindings; item t writes film[t] only.
+        // its bindings; item t writes paths[t] only.
         unsafe {
-            let (rays, paths, photons, offsets, mut film) =
-                (self.rays.host(), self.paths.host(), self.photons.host(), self.offsets.host(), self.film.host_store());
+            let (rays, photons, offsets, mut paths) = (self.rays.host(), self.photons.host(), self.offsets.host(), self.paths.host_store());
             match self.index {
-                IndexBinds::Grid => photon::gather(t, &self.params, &HashGrid::new(&self.params), rays, paths, photons, offsets, &mut film),
+                IndexBinds::Grid => photon::gather(t, &self.params, &HashGrid::new(&self.params), rays, photons, offsets, &mut paths),
                 IndexBinds::Kd { nodes, leaves } => {
                     let index = KdCells { nodes: nodes.host(), leaves: leaves.host(), cells: self.params.cells };
-                    photon::gather(t, &self.params, &index, rays, paths, photons, offsets, &mut film)
+                    photon::gather(t, &self.params, &index, rays, photons, offsets, &mut paths)
                 }
             }
         }

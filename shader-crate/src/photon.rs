@@ -81,28 +81,25 @@ pub fn gather_grid(
     #[spirv(num_workgroups)] groups: UVec3,
     #[spirv(push_constant)] params: &IndexParams,
     #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] rays: &[Ray],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] paths: &[PathState],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] photons: &[Photon],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] offsets: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] film: &mut [[f32; 4]],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] photons: &[Photon],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] offsets: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] paths: &mut [PathState],
 ) {
-    photon::gather(crate::item(id, groups), params, &HashGrid::new(params), rays, paths, photons, offsets, film);
+    photon::gather(crate::item(id, groups), params, &HashGrid::new(params), rays, photons, offsets, paths);
 }
 
 #[spirv(compute(threads(64)))]
-#[allow(clippy::too_many_arguments)]
 pub fn gather_kd(
     #[spirv(global_invocation_id)] id: UVec3,
     #[spirv(num_workgroups)] groups: UVec3,
     #[spirv(push_constant)] params: &IndexParams,
     #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] rays: &[Ray],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] paths: &[PathState],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] photons: &[Photon],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] offsets: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] nodes: &[KdNode],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] leaves: &[LeafCells],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] film: &mut [[f32; 4]],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] photons: &[Photon],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] offsets: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] nodes: &[KdNode],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] leaves: &[LeafCells],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] paths: &mut [PathState],
 ) {
     let index = KdCells { nodes, leaves, cells: params.cells };
-    photon::gather(crate::item(id, groups), params, &index, rays, paths, photons, offsets, film);
+    photon::gather(crate::item(id, groups), params, &index, rays, photons, offsets, paths);
 }

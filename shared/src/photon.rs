@@ -15,7 +15,7 @@
 //!    `permute` writes the records in that order.
 //! 4. `gather`: at each eye path's gather point, the photons within radius r whose surface
 //!    normal lies on the same side, weighted by a kernel, divided by πr²; added to the path's
-//!    radiance, which the film then adds up.
+//!    radiance, which the film (`render::film`) then adds up.
 //!
 //! Random numbers come from the stream (pass seed, bounce, photon): a pass is a function of
 //! its index and the scene only, so passes can run anywhere and be summed.
@@ -545,32 +545,29 @@ pub fn irradiance<I: PhotonIndex>(index: &I, p: &IndexParams, photons: &[Photon]
 }
 
 /// Path `i`: if it ended at a gather point, adds the reflected radiance its photons give
-/// (throughput already holds albedo/π) to its radiance, then adds the path to the film.
+/// (throughput already holds albedo/π) to its radiance (the film then adds the paths up).
 #[inline(always)]
-#[allow(clippy::too_many_arguments)]
-pub fn gather<I: PhotonIndex, O: Store<[f32; 4]> + ?Sized>(
+pub fn gather<I: PhotonIndex, P: Store<PathState> + ?Sized>(
     i: u32,
     p: &IndexParams,
     index: &I,
     rays: &[Ray],
-    paths: &[PathState],
     photons: &[Photon],
     offsets: &[u32],
-    film: &mut O,
+    paths: &mut P,
 ) {
     if i >= p.count {
         return;
     }
     let k = i as usize;
-    let path = paths[k];
-    let mut c = path.radiance;
+    let mut path = paths.load(k);
     if path.flags & PATH_GATHER != 0 {
         let g = rays[k];
         let mut e = irradiance(index, p, photons, offsets, g.origin, g.dir, 0).0;
         if p.maps > 1 {
             e = add3(e, irradiance(index, p, photons, offsets, g.origin, g.dir, 1).0);
         }
-        c = add3(c, mul3(path.throughput, e));
+        path.radiance = add3(path.radiance, mul3(path.throughput, e));
+        paths.store(k, path);
     }
-    crate::render::film_add(k, p.sample, c, film);
 }

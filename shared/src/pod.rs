@@ -157,9 +157,29 @@ pub struct RenderParams {
     /// `RENDER_*` bits.
     pub flags: u32,
     pub camera: Camera,
-    /// Which sample of the pixels this is (0 writes the film, later ones add to it).
+    /// Which group of samples this is (0 writes the film, later ones add to it).
     pub sample: u32,
-    pub _pad: [u32; 3],
+    /// Samples per pixel in this dispatch: `count` = pixels × `samples`, path i being sample
+    /// i / pixels of pixel i % pixels (0 counts as 1).
+    pub samples: u32,
+    pub _pad: [u32; 2],
+}
+
+impl RenderParams {
+    /// Samples per pixel of the dispatch (at least 1).
+    #[inline(always)]
+    pub fn samples(&self) -> u32 {
+        if self.samples == 0 {
+            1
+        } else {
+            self.samples
+        }
+    }
+    /// Pixels of the dispatch.
+    #[inline(always)]
+    pub fn pixels(&self) -> u32 {
+        self.count / self.samples()
+    }
 }
 
 /// Push constants of the counting sort's kernels (`sort`): items, cells, and the distance of a
@@ -204,15 +224,16 @@ pub const PATH_GATHER: u32 = 4;
 /// Diffuse bounces so far, from this bit up.
 pub const PATH_DIFFUSE_SHIFT: u32 = 8;
 
-/// A pixel's path: what its next hit is worth (`throughput`), the radiance gathered so far,
-/// and its state (`PATH_*` bits).
+/// A pixel sample's path: what its next hit is worth (`throughput`), the radiance gathered so
+/// far, and its state (`PATH_*` bits).
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct PathState {
     pub throughput: [f32; 3],
     pub flags: u32,
     pub radiance: [f32; 3],
-    /// The pixel this path belongs to (its random stream).
+    /// The path's random stream: its pixel, plus the sample within the dispatch times the
+    /// image's pixel count.
     pub pixel: u32,
 }
 
@@ -313,8 +334,7 @@ pub struct IndexParams {
     pub radius: [f32; 2],
     /// `FILTER_*`.
     pub filter: u32,
-    /// Which sample of the pixels this is (0 writes the film, later ones add to it).
-    pub sample: u32,
+    pub _pad: u32,
     /// The scene box (the grid's origin, the kd-tree's root cell).
     pub bounds_min: [f32; 3],
     pub _pad0: u32,

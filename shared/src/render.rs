@@ -9,19 +9,22 @@ use crate::ray::Ray;
 use crate::rng::Rng;
 use crate::shade;
 
-/// Path `i` of the batch: its primary ray and a fresh path state.
+/// Path `i` of the batch (sample i / pixels of pixel i % pixels): its primary ray and a fresh
+/// path state.
 #[inline(always)]
 pub fn camera_rays<R: Store<Ray> + ?Sized, P: Store<PathState> + ?Sized>(i: u32, p: &RenderParams, rays: &mut R, paths: &mut P) {
     if i < p.count {
-        let pixel = camera::pixel(&p.camera, p.first + i);
+        let b = p.pixels();
+        let pixel = camera::pixel(&p.camera, p.first + i % b);
+        let stream = pixel.wrapping_add((i / b).wrapping_mul(p.camera.width * p.camera.height));
         let ray = if p.flags & RENDER_JITTER != 0 {
-            let mut rng = Rng::new(p.seed ^ 0x6A09_E667, pixel);
+            let mut rng = Rng::new(p.seed ^ 0x6A09_E667, stream);
             camera::jittered_ray(&p.camera, pixel, rng.next_f32(), rng.next_f32())
         } else {
             camera::primary_ray(&p.camera, pixel)
         };
         rays.store(i as usize, ray);
-        paths.store(i as usize, PathState::start(pixel));
+        paths.store(i as usize, PathState::start(stream));
     }
 }
 
@@ -68,22 +71,29 @@ pub fn accumulate<P: Store<PathState> + ?Sized>(i: u32, p: &RenderParams, terms:
     }
 }
 
-/// The film: sample 0 writes path `i`'s radiance, later samples add theirs (the host divides
-/// by the number of samples).
+/// The film: pixel `i` of the batch sums its samples' radiance; sample group 0 writes it, later
+/// groups add theirs (the fourth component counts the samples; the host divides by it).
 #[inline(always)]
 pub fn film<O: Store<[f32; 4]> + ?Sized>(i: u32, p: &RenderParams, paths: &[PathState], radiance: &mut O) {
-    if i < p.count {
-        let k = i as usize;
-        film_add(k, p.sample, paths[k].radiance, radiance);
+    let b = p.pixels();
+    if i < b {
+        let mut c = [0.0f32; 3];
+        let mut s = 0;
+        while s < p.samples() {
+            let r = paths[(s * b + i) as usize].radiance;
+            c = [c[0] + r[0], c[1] + r[1], c[2] + r[2]];
+            s += 1;
+        }
+        film_add(i as usize, p.sample, c, p.samples() as f32, radiance);
     }
 }
 
-/// Writes (sample 0) or adds `c` to element `k` of the film.
+/// Writes (sample group 0) or adds `c`, the sum of `n` samples, to element `k` of the film.
 #[inline(always)]
-pub fn film_add<O: Store<[f32; 4]> + ?Sized>(k: usize, sample: u32, c: [f32; 3], radiance: &mut O) {
-    let v = if sample == 0 { [c[0], c[1], c[2], 1.0] } else {
+pub fn film_add<O: Store<[f32; 4]> + ?Sized>(k: usize, sample: u32, c: [f32; 3], n: f32, radiance: &mut O) {
+    let v = if sample == 0 { [c[0], c[1], c[2], n] } else {
         let o = radiance.load(k);
-        [o[0] + c[0], o[1] + c[1], o[2] + c[2], o[3] + 1.0]
+        [o[0] + c[0], o[1] + c[1], o[2] + c[2], o[3] + n]
     };
     radiance.store(k, v);
 }

@@ -8,7 +8,7 @@
 //! `vs reference` = fraction of all rays whose answer differs from the native full-stack
 //! traversal (itself bit-identical to the oracle in the tests).
 pub mod dump;
-mod photons;
+pub mod photons;
 pub mod plot;
 pub mod rays;
 mod suites;

@@ -1,7 +1,7 @@
 //! The `photons` suite: photon mapping's speed and its error against a path-traced reference,
 //! on the device the run is given.
 //!
-//! Table 1 (`photons-speed`): per scene, one pass of 2^20 photons — photon rays and bounces
+//! Table 1 (`photons`): per scene, one pass of 2^20 photons — photon rays and bounces
 //! (from a separate counting run), the trace's time and photon bounces per second, the photon
 //! index's build time (hashed grid and kd leaves), and the eye pass and the gather at the
 //! benchmark's resolution. Times are wall time per pass of several passes recorded into one
@@ -25,7 +25,7 @@ use crate::integrator::RenderOutput;
 use crate::runtime::cpu::NATIVE;
 use crate::runtime::{Commands, Runtime};
 use crate::tracer::Tracer;
-use anyhow::Result;
+use anyhow::{Context, Result};
 use indicatif::ProgressBar;
 use kdray_shared::kdtree::Algorithm;
 use std::path::PathBuf;
@@ -38,16 +38,18 @@ fn scenes(o: &Options) -> Vec<String> {
 }
 
 /// Milliseconds per copy of what `record` records: `copies` copies in one submission, the
-/// median of 3 attempts after one warm-up attempt.
+/// median of 3 attempts after one warm-up attempt. On a GPU from submission to completion; the
+/// native runtime runs passes as they are recorded, so there the recording is timed too.
 fn time_recorded(rt: &dyn Runtime, copies: u32, record: &dyn Fn(&mut Commands) -> Result<()>) -> Result<f64> {
     let mut ms = Vec::new();
     for attempt in 0..4 {
+        rt.finish()?;
+        let native_start = Instant::now();
         let mut c = rt.begin();
         for _ in 0..copies {
             record(&mut c)?;
         }
-        rt.finish()?;
-        let start = Instant::now();
+        let start = if rt.is_native() { native_start } else { Instant::now() };
         rt.submit(c)?;
         rt.finish()?;
         if attempt > 0 {
@@ -69,24 +71,31 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
         None => &NATIVE,
     };
     let specs = scenes(o);
+    std::fs::create_dir_all(&o.out).with_context(|| format!("cannot create {}", o.out.display()))?;
     let accel = Accel::kd(Algorithm::ShortStack(3));
-    let photons: u32 = if rt.is_native() { 1 << 18 } else { 1 << 20 };
-    let copies = if rt.is_native() { 1 } else { 5 };
+    // A software device (the native runtime, lavapipe) gets small workloads: CI runs every
+    // suite at tiny sizes there.
+    let software = rt.is_native() || o.gpu.is_some_and(|g| g.is_software());
+    let photons: u32 = if software { (o.size * o.size * 4).clamp(1 << 12, 1 << 18) } else { (o.size * o.size * 4).clamp(1 << 16, 1 << 20) };
+    let copies = if software { 1 } else { 5 };
     o.progress.set_length(specs.len() as u64 * 2);
     let speed_header: Vec<String> = [
-        "scene", "triangles", "photons", "rays traced", "bounces", "bounces/photon", "stored", "trace ms", "G bounces/s",
+        "scene", "triangles", "photons", "rays traced", "bounces", "bounces/photon", "stored", "trace ms", "M bounces/s",
         "index grid ms", "index kd ms", "eye ms", "gather grid ms", "gather kd ms", "image",
     ]
     .map(String::from)
     .to_vec();
     let mut speed = Vec::new();
     let err_size = o.size.min(512);
-    let err_header: Vec<String> = ["scene", "method", "passes or spp", "photons/pass", "seconds", "rel RMSE %", "relMSE", "reference spp"].map(String::from).to_vec();
+    let err_header: Vec<String> =
+        ["scene", "method", "passes or spp", "photons/pass", "seconds", "rel RMSE %", "noise-corrected %", "relMSE", "reference spp"].map(String::from).to_vec();
     let mut errors = Vec::new();
+    let mut ref_notes: Vec<String> = Vec::new();
     let mut files = Vec::new();
     for spec in &specs {
         let (scene, tree) = all.get(spec, &o.build)?;
         let t = Tracer::new(rt, scene, Some(tree))?;
+        let speed_only = std::env::var("KDRAY_PHOTONS_SPEED_ONLY").is_ok_and(|v| v == "1");
         let area = scene.surface_area();
         // Speed: one pass of `photons` photons, both indices.
         let mut row = vec![scene.name.clone(), scene.triangles.len().to_string(), photons.to_string()];
@@ -112,8 +121,8 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
                 }
                 Ok(())
             })?;
-            let g = time_recorded(rt, copies, &|c| rt.dispatch(c, &grid.gather(0, 0, n as u32, &fb)))?;
-            let k = time_recorded(rt, copies, &|c| rt.dispatch(c, &kd.gather(0, 0, n as u32, &fb)))?;
+            let g = time_recorded(rt, copies, &|c| rt.dispatch(c, &grid.gather(0, n as u32, &fb)))?;
+            let k = time_recorded(rt, copies, &|c| rt.dispatch(c, &kd.gather(0, n as u32, &fb)))?;
             (format!("{eye:.3}"), format!("{g:.3}"), format!("{k:.3}"))
         } else {
             ("–".into(), "–".into(), "–".into())
@@ -124,7 +133,7 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
             format!("{:.2}", bounces as f64 / photons as f64),
             stored.to_string(),
             format!("{trace_ms:.3}"),
-            format!("{:.2}", bounces as f64 / trace_ms / 1e6),
+            format!("{:.1}", bounces as f64 / trace_ms / 1e3),
             format!("{index_grid:.3}"),
             format!("{index_kd:.3}"),
             eye_ms,
@@ -137,24 +146,63 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
         drop(grid);
         o.progress.inc(1);
 
+        if speed_only {
+            o.progress.inc(1);
+            continue;
+        }
         // Error against time at err_size².
         let cam = scene.camera.to_pod(err_size, err_size);
         let hidden = ProgressBar::hidden();
-        let ref_spp: u32 = std::env::var("KDRAY_REFERENCE_SPP").ok().and_then(|v| v.parse().ok()).unwrap_or(if rt.is_native() { 256 } else { 8192 });
-        let reference = path::render(&t, accel, &cam, &PathOptions::path(0x5EED, 64, ref_spp), &hidden)?;
-        let ref_path = o.out.join(format!("reference-{}.pfm", scene.name));
-        write_pfm(&reference, &ref_path)?;
-        files.push(ref_path);
+        let ref_spp: u32 = std::env::var("KDRAY_REFERENCE_SPP").ok().and_then(|v| v.parse().ok()).unwrap_or(if software { 256 } else { 8192 });
+        // The reference: `KDRAY_REFERENCE_DIR/reference-SCENE.pfm` if there is one (with its own
+        // error in `reference-SCENE.err`, e.g. from scripts/mitsuba_path.py --reference), else
+        // our path tracer's, as two independent halves whose difference gives the reference's
+        // own error (half of theirs). The table subtracts it in quadrature ("noise-corrected").
+        let given = std::env::var("KDRAY_REFERENCE_DIR").ok().map(PathBuf::from).map(|d| (d.join(format!("reference-{}.pfm", scene.name)), d.join(format!("reference-{}.err", scene.name))));
+        let (reference, ref_err, ref_what) = match given.filter(|(p, _)| p.exists()) {
+            Some((p, e)) => {
+                let (w, h, px) = crate::image_out::read_pfm(&p)?;
+                anyhow::ensure!(w == err_size && h == err_size, "{} is {w}x{h}, not {err_size}²", p.display());
+                let mut r = RenderOutput::new(w, h);
+                for (d, s) in r.radiance.iter_mut().zip(px) {
+                    *d = [s[0], s[1], s[2], 1.0];
+                }
+                let err: f64 = std::fs::read_to_string(&e).ok().and_then(|s| s.trim().parse().ok()).unwrap_or(0.0);
+                (r, err, format!("{} (given)", p.display()))
+            }
+            None => {
+                let start = Instant::now();
+                let half_a = path::render(&t, accel, &cam, &PathOptions::path(0x5EED, 64, ref_spp / 2), &hidden)?;
+                let half_b = path::render(&t, accel, &cam, &PathOptions::path(0xFACADE, 64, ref_spp / 2), &hidden)?;
+                let ref_secs = start.elapsed().as_secs_f64();
+                let mut reference = half_a.clone();
+                for (r, b) in reference.radiance.iter_mut().zip(&half_b.radiance) {
+                    for c in 0..3 {
+                        r[c] = 0.5 * (r[c] + b[c]);
+                    }
+                }
+                let ref_path = o.out.join(format!("reference-{}.pfm", scene.name));
+                write_pfm(&reference, &ref_path)?;
+                files.push(ref_path);
+                let err = error_of(&half_a, &half_b).0 / 2.0;
+                (reference, err, format!("our path tracer, {ref_spp} spp ({ref_secs:.1} s)"))
+            }
+        };
+        ref_notes.push(format!("{}: reference {ref_what}, its own error {:.3} %", scene.name, ref_err * 100.0));
+        let corrected = |e: f64| (e * e - ref_err * ref_err).max(0.0).sqrt();
         let _ = crate::scene::mitsuba::export(scene, &o.out.join(format!("mitsuba-{}", scene.name)), err_size, err_size, 65);
         let mut series: Vec<Series> = Vec::new();
-        let pass_counts: Vec<u32> = if rt.is_native() { vec![1, 4, 16] } else { vec![1, 4, 16, 64, 256] };
-        let variants: Vec<(&str, PhotonOptions)> = vec![
-            ("ppm", PhotonOptions { photons, ..Default::default() }),
-            ("ppm fixed radius", PhotonOptions { photons, alpha: 1.0, ..Default::default() }),
-            ("ppm kd index", PhotonOptions { photons, index: IndexKind::Kd, ..Default::default() }),
-            ("ppm independent photons", PhotonOptions { photons, spread: 0.0, ..Default::default() }),
-            ("ppm direct from photons", PhotonOptions { photons, photon_direct: true, ..Default::default() }),
-            ("ppm 4 eye samples/pass", PhotonOptions { photons, eye_samples: 4, ..Default::default() }),
+        let pass_counts: Vec<u32> = if software { vec![1, 4] } else { vec![1, 4, 16, 64, 256] };
+        let d = PhotonOptions { photons, eye_samples: 4, ..Default::default() };
+        let variants: Vec<(String, PhotonOptions)> = vec![
+            (format!("ppm, 1 eye sample/pass"), PhotonOptions { eye_samples: 1, ..d.clone() }),
+            (format!("ppm, 4 eye samples/pass"), d.clone()),
+            (format!("ppm, 16 eye samples/pass"), PhotonOptions { eye_samples: 16, ..d.clone() }),
+            (format!("ppm, {}k photons, 16 eye samples/pass", photons / 4096), PhotonOptions { photons: photons / 4, eye_samples: 16, ..d.clone() }),
+            ("ppm fixed radius (4 eye)".into(), PhotonOptions { alpha: 1.0, ..d.clone() }),
+            ("ppm kd index (4 eye)".into(), PhotonOptions { index: IndexKind::Kd, ..d.clone() }),
+            ("ppm independent photons (4 eye)".into(), PhotonOptions { spread: 0.0, ..d.clone() }),
+            ("ppm direct from photons (4 eye)".into(), PhotonOptions { photon_direct: true, ..d.clone() }),
         ];
         for (name, v) in variants {
             let mut pts = Vec::new();
@@ -165,11 +213,11 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
                 let secs = start.elapsed().as_secs_f64();
                 let (e, m) = error_of(&img, &reference);
                 pts.push((secs, e * 100.0));
-                errors.push(vec![scene.name.clone(), name.into(), passes.to_string(), photons.to_string(), format!("{secs:.3}"), format!("{:.3}", e * 100.0), format!("{m:.3e}"), ref_spp.to_string()]);
+                errors.push(vec![scene.name.clone(), name.clone(), passes.to_string(), map.o.photons.to_string(), format!("{secs:.3}"), format!("{:.3}", e * 100.0), format!("{:.3}", corrected(e) * 100.0), format!("{m:.3e}"), ref_spp.to_string()]);
             }
-            series.push(Series { name: name.into(), points: pts, dashed: false });
+            series.push(Series { name, points: pts, dashed: false });
         }
-        let spps: Vec<u32> = if rt.is_native() { vec![4, 16, 64] } else { vec![16, 64, 256, 1024] };
+        let spps: Vec<u32> = if software { vec![4, 16] } else { vec![16, 64, 256, 1024] };
         let mut pts = Vec::new();
         for &spp in &spps {
             let start = Instant::now();
@@ -177,7 +225,7 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
             let secs = start.elapsed().as_secs_f64();
             let (e, m) = error_of(&img, &reference);
             pts.push((secs, e * 100.0));
-            errors.push(vec![scene.name.clone(), "path tracer".into(), spp.to_string(), "–".into(), format!("{secs:.3}"), format!("{:.3}", e * 100.0), format!("{m:.3e}"), ref_spp.to_string()]);
+            errors.push(vec![scene.name.clone(), "path tracer".into(), spp.to_string(), "–".into(), format!("{secs:.3}"), format!("{:.3}", e * 100.0), format!("{:.3}", corrected(e) * 100.0), format!("{m:.3e}"), ref_spp.to_string()]);
         }
         series.push(Series { name: "path tracer (NEE)".into(), points: pts, dashed: true });
         let plot_path = o.out.join(format!("photons-error-{}-{}.png", scene.name, dev_name(o)));
@@ -195,11 +243,94 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
         }
         o.progress.inc(1);
     }
-    let name = format!("photons-speed-{}", dev_name(o));
+    let name = format!("photons-{}", dev_name(o));
     write_cells(&o.out, &name, "Photon mapping: tracing, index, gather", &device_line(o.gpu), "", &speed_header, &speed)?;
     files.extend([o.out.join(format!("{name}.csv")), o.out.join(format!("{name}.md"))]);
     let name = format!("photons-error-{}", dev_name(o));
-    write_cells(&o.out, &name, "Photon mapping: error against a path-traced reference vs time", &device_line(o.gpu), "", &err_header, &errors)?;
+    let summary = format!(
+        "Error: RMSE of the displayed images (clamped at 1) over the reference's mean; noise-corrected: with the reference's own error \
+         (from its two independent halves) subtracted in quadrature. Seconds: whole renders, every pass and transfer, {err_size}².\n\n{}\n\n",
+        ref_notes.iter().map(|n| format!("* {n}")).collect::<Vec<_>>().join("\n")
+    );
+    write_cells(&o.out, &name, "Photon mapping: error against a path-traced reference vs time", &device_line(o.gpu), &summary, &err_header, &errors)?;
     files.extend([o.out.join(format!("{name}.csv")), o.out.join(format!("{name}.md"))]);
     Ok(files)
+}
+
+/// Error-vs-time plots (one per scene) from a `photons-error-*.csv` table, with the rows of
+/// `scripts/mitsuba_path.py`'s `mitsuba-error.csv` added as dashed lines when given (for runs
+/// on machines without a plot font). Returns the files written.
+pub fn plot_error_table(table: &std::path::Path, mitsuba: Option<&std::path::Path>, out: &std::path::Path, device: &str) -> Result<Vec<PathBuf>> {
+    let read = |p: &std::path::Path| -> Result<Vec<std::collections::HashMap<String, String>>> {
+        let mut r = csv_rows(&std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))?);
+        anyhow::ensure!(!r.is_empty(), "{}: no header", p.display());
+        let header = r.remove(0);
+        Ok(r.into_iter().map(|row| header.iter().cloned().zip(row).collect()).collect())
+    };
+    let rows = read(table)?;
+    let extra = match mitsuba {
+        Some(m) => read(m)?,
+        None => Vec::new(),
+    };
+    let mut scenes: Vec<String> = rows.iter().map(|r| r["scene"].clone()).collect();
+    scenes.dedup();
+    let mut files = Vec::new();
+    for scene in scenes {
+        let mut series: Vec<Series> = Vec::new();
+        for r in rows.iter().filter(|r| r["scene"] == scene) {
+            let name = if r["method"] == "path tracer" { "kdray path tracer (NEE)".to_string() } else { r["method"].clone() };
+            let pt = (r["seconds"].parse::<f64>().unwrap_or(f64::NAN), r["noise-corrected %"].parse::<f64>().unwrap_or(f64::NAN));
+            match series.iter_mut().find(|s| s.name == name) {
+                Some(s) => s.points.push(pt),
+                None => series.push(Series { dashed: name.contains("path tracer"), name, points: vec![pt] }),
+            }
+        }
+        let m: Vec<(f64, f64)> = extra
+            .iter()
+            .filter(|r| r["scene"] == scene)
+            .map(|r| (r["seconds"].parse().unwrap_or(f64::NAN), r["rel RMSE %"].parse().unwrap_or(f64::NAN)))
+            .collect();
+        if !m.is_empty() {
+            series.push(Series { name: "Mitsuba 3 path tracer (cuda_ad_rgb)".into(), points: m, dashed: true });
+        }
+        let path = out.join(format!("photons-error-{scene}.png"));
+        line_chart(
+            &path,
+            &LineChart {
+                title: format!("{scene}: error vs time, 512² ({device})"),
+                x_label: "seconds (whole render)".into(),
+                y_label: "relative RMSE % (clamped at 1), reference noise removed".into(),
+                x_log: true,
+                y_log: true,
+                series,
+            },
+        )?;
+        files.push(path);
+    }
+    Ok(files)
+}
+
+/// Rows of a CSV file as written by `write_cells` (fields quoted with "" when needed).
+fn csv_rows(text: &str) -> Vec<Vec<String>> {
+    let mut rows = Vec::new();
+    for line in text.lines().filter(|l| !l.is_empty()) {
+        let mut row = Vec::new();
+        let mut cell = String::new();
+        let mut quoted = false;
+        let mut chars = line.chars().peekable();
+        while let Some(c) = chars.next() {
+            match c {
+                '"' if quoted && chars.peek() == Some(&'"') => {
+                    cell.push('"');
+                    chars.next();
+                }
+                '"' => quoted = !quoted,
+                ',' if !quoted => row.push(std::mem::take(&mut cell)),
+                c => cell.push(c),
+            }
+        }
+        row.push(cell);
+        rows.push(row);
+    }
+    rows
 }

@@ -456,6 +456,11 @@ impl Gpu {
     /// Runs a sequence of passes `reps` times after a warm-up (`WARM_UP`). Per run: the wall time from
     /// submit to completion and, where the adapter has timestamp queries, the GPU time from the
     /// start of the first pass to the end of the last and the GPU time of each pass (ms).
+    /// Whether the adapter is a CPU driver (lavapipe, SwiftShader) rather than a GPU.
+    pub fn is_software(&self) -> bool {
+        self.info.device_type == wgpu::DeviceType::Cpu
+    }
+
     pub fn time_passes(&self, passes: &[&dyn Kernel], reps: usize) -> Result<Timing> {
         let n = passes.len() as u32;
         let qs = self.timestamps.then(|| {

@@ -87,8 +87,8 @@ impl FrameBuffers {
     }
 }
 
-/// Parameters of sample `sample` of the batch of pixels `first..first + count` (in the
-/// camera's ray order).
+/// Parameters of sample group `sample` (one sample per pixel) of the batch of pixels
+/// `first..first + count` (in the camera's ray order); `with_samples` makes it several.
 pub fn params(t: &Tracer, cam: &Camera, o: &PathOptions, first: usize, count: usize, sample: u32) -> RenderParams {
     let bounces_needed = t.has_specular || o.diffuse_bounces > 0;
     RenderParams {
@@ -102,12 +102,18 @@ pub fn params(t: &Tracer, cam: &Camera, o: &PathOptions, first: usize, count: us
         flags: if o.jitter { RENDER_JITTER } else { 0 },
         camera: *cam,
         sample,
-        _pad: [0; 3],
+        samples: 1,
+        _pad: [0; 2],
     }
 }
 
-/// Every pass of one sample of one batch, in order, up to the paths' last bounce (the caller
-/// adds the film or the gather). Bounce 0 writes its hits into `primary_hits`.
+/// `p` with `samples` samples per pixel in one dispatch.
+pub fn with_samples(p: RenderParams, samples: u32) -> RenderParams {
+    RenderParams { count: p.count * samples, samples, ..p }
+}
+
+/// Every pass of one sample group of one batch, in order, up to the paths' last bounce (the
+/// caller adds the film or the gather). Bounce 0 writes its hits into `primary_hits`.
 pub fn path_passes<'a>(t: &'a Tracer, accel: Accel, p: &RenderParams, fb: &'a FrameBuffers) -> Result<Vec<Box<dyn Kernel + 'a>>> {
     let n = p.count as usize;
     let mut v: Vec<Box<dyn Kernel + 'a>> = vec![Box::new(CameraRays { params: *p, rays: &fb.rays, paths: &fb.paths })];
@@ -152,10 +158,11 @@ pub fn place(out: &mut RenderOutput, cam: &Camera, first: usize, hits: Vec<Hit>,
     }
 }
 
-/// Samples recorded into one submission (bounds the size of a command buffer).
-const SAMPLES_PER_SUBMIT: u32 = 16;
+/// Dispatches recorded into one submission (bounds the size of a command buffer).
+const DISPATCHES_PER_SUBMIT: usize = 2048;
 
-/// Renders `cam`'s image: `o.spp` samples per pixel.
+/// Renders `cam`'s image: `o.spp` samples per pixel, as many per dispatch as the batch size
+/// allows (fewer, larger dispatches).
 pub fn render(t: &Tracer, accel: Accel, cam: &Camera, o: &PathOptions, progress: &ProgressBar) -> Result<RenderOutput> {
     t.check(accel)?;
     if o.spp == 0 {
@@ -164,8 +171,10 @@ pub fn render(t: &Tracer, accel: Accel, cam: &Camera, o: &PathOptions, progress:
     let rt = t.rt;
     let n = (cam.width * cam.height) as usize;
     let b = t.batch_size(accel, n);
+    let per_dispatch = (t.batch_size(accel, b * o.spp as usize) / b).clamp(1, o.spp as usize) as u32;
+    let groups = o.spp.div_ceil(per_dispatch);
     let sets = if n > b { 2 } else { 1 };
-    let fbs: Vec<FrameBuffers> = (0..sets).map(|_| FrameBuffers::new(t, accel, b)).collect::<Result<_>>()?;
+    let fbs: Vec<FrameBuffers> = (0..sets).map(|_| FrameBuffers::new(t, accel, b * per_dispatch as usize)).collect::<Result<_>>()?;
     let mut out = RenderOutput::new(cam.width, cam.height);
     progress.set_length(n as u64 * o.spp as u64);
     let mut pending = None;
@@ -175,29 +184,31 @@ pub fn render(t: &Tracer, accel: Accel, cam: &Camera, o: &PathOptions, progress:
         let count = b.min(n - first);
         let fb = &fbs[batch % sets];
         let mut c = rt.begin();
-        for s in 0..o.spp {
-            let p = params(t, cam, o, first, count, s);
+        let mut recorded = 0;
+        for g in 0..groups {
+            let s = per_dispatch.min(o.spp - g * per_dispatch);
+            let p = with_samples(params(t, cam, o, first, count, g), s);
             for k in passes(t, accel, &p, fb)? {
                 rt.dispatch(&mut c, k.as_ref())?;
+                recorded += 1;
             }
-            if (s + 1) % SAMPLES_PER_SUBMIT == 0 && s + 1 < o.spp {
+            progress.inc((count * s as usize) as u64);
+            if recorded >= DISPATCHES_PER_SUBMIT && g + 1 < groups {
                 rt.submit(std::mem::replace(&mut c, rt.begin()))?;
-                progress.inc((count * SAMPLES_PER_SUBMIT as usize) as u64);
+                recorded = 0;
             }
         }
         let h = rt.read_back_of(&mut c, &fb.primary_hits, count)?;
         let r = rt.read_back_of(&mut c, &fb.radiance, count)?;
         rt.submit(c)?;
-        if let Some((f, h, r, cnt)) = pending.replace((first, h, r, count)) {
+        if let Some((f, h, r)) = pending.replace((first, h, r)) {
             place(&mut out, cam, f, cast(rt.wait(h)?), cast(rt.wait(r)?));
-            progress.inc(cnt as u64 * (o.spp - SAMPLES_PER_SUBMIT * ((o.spp - 1) / SAMPLES_PER_SUBMIT)) as u64);
         }
         first += count;
         batch += 1;
     }
-    if let Some((f, h, r, cnt)) = pending {
+    if let Some((f, h, r)) = pending {
         place(&mut out, cam, f, cast(rt.wait(h)?), cast(rt.wait(r)?));
-        progress.inc(cnt as u64 * (o.spp - SAMPLES_PER_SUBMIT * ((o.spp - 1) / SAMPLES_PER_SUBMIT)) as u64);
     }
     Ok(out)
 }

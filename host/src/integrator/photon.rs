@@ -19,7 +19,7 @@ use super::path::{self, FrameBuffers, PathOptions};
 use super::RenderOutput;
 use crate::accel::Accel;
 use crate::kdtree::KdTreeData;
-use crate::kernels::{EmitPhotons, Gather, IndexBinds, PermutePhotons, PhotonBounce, PhotonKeys};
+use crate::kernels::{EmitPhotons, Film, Gather, IndexBinds, PermutePhotons, PhotonBounce, PhotonKeys};
 use crate::runtime::{cast, Buffer, Kernel, Runtime};
 use crate::sort::CountingSort;
 use crate::tracer::{LeafLists, Tracer};
@@ -89,7 +89,7 @@ impl Default for PhotonOptions {
             filter: FILTER_CONSTANT,
             photon_bounces: 16,
             eye_bounces: 16,
-            eye_samples: 1,
+            eye_samples: 4,
             seed: 1,
         }
     }
@@ -334,7 +334,6 @@ impl<'t> PhotonMap<'t> {
             maps: self.maps,
             radius: [r, r * self.o.caustic_radius],
             filter: self.o.filter,
-            sample: pass,
             bounds_min: self.bounds.0,
             bounds_max: self.bounds.1,
             ..Default::default()
@@ -373,16 +372,15 @@ impl<'t> PhotonMap<'t> {
         rt.dispatch(c, &PermutePhotons { params: p, photons: &self.records, order: &self.order, offsets: &self.sort.offsets, sorted: &self.sorted })
     }
 
-    /// The gather pass of pass `pass` over a batch of eye paths, film sample `sample`.
-    pub fn gather<'a>(&'a self, pass: u32, sample: u32, count: u32, fb: &'a FrameBuffers) -> Gather<'a> {
+    /// The gather pass of pass `pass` over `count` eye paths.
+    pub fn gather<'a>(&'a self, pass: u32, count: u32, fb: &'a FrameBuffers) -> Gather<'a> {
         Gather {
-            params: IndexParams { sample, ..self.index_params(pass, count) },
+            params: self.index_params(pass, count),
             index: self.index_binds(),
             rays: &fb.rays,
-            paths: &fb.paths,
             photons: &self.sorted,
             offsets: &self.sort.offsets,
-            film: &fb.radiance,
+            paths: &fb.paths,
         }
     }
 
@@ -471,15 +469,15 @@ impl<'t> PhotonMap<'t> {
     }
 }
 
-/// Eye-path parameters of eye sample `sample` (of all passes; jittered, ending at gather
-/// points).
-fn eye_params(t: &Tracer, cam: &Camera, o: &PhotonOptions, first: usize, count: usize, sample: u32) -> RenderParams {
-    let po = PathOptions { seed: pass_seed(o.seed ^ 0x0E7E_0E7E, sample), bounces: o.eye_bounces, diffuse_bounces: 0, spp: 1, jitter: true };
+/// Eye-path parameters of pass `pass`: `o.eye_samples` jittered samples per pixel, ending at
+/// gather points.
+pub fn eye_params(t: &Tracer, cam: &Camera, o: &PhotonOptions, first: usize, count: usize, pass: u32) -> RenderParams {
+    let po = PathOptions { seed: pass_seed(o.seed ^ 0x0E7E_0E7E, pass), bounces: o.eye_bounces, diffuse_bounces: 0, spp: 1, jitter: true };
     let mut p = path::params(t, cam, &po, first, count, 0);
     p.seed = po.seed;
-    p.sample = sample;
+    p.sample = pass;
     p.flags = RENDER_JITTER | RENDER_GATHER | if o.photon_direct { RENDER_PHOTON_DIRECT } else { 0 };
-    p
+    path::with_samples(p, o.eye_samples)
 }
 
 /// Renders `cam`'s image by progressive photon mapping; `progress` counts passes.
@@ -488,24 +486,23 @@ pub fn render(map: &mut PhotonMap, cam: &Camera, progress: &ProgressBar) -> Resu
     let rt = t.rt;
     let accel = map.accel;
     let n = (cam.width * cam.height) as usize;
-    let b = t.batch_size(accel, n);
+    let e = map.o.eye_samples as usize;
+    let b = (t.batch_size(accel, n * e) / e).max(1);
     let batches: Vec<(usize, usize)> = (0..n).step_by(b).map(|f| (f, b.min(n - f))).collect();
-    let fbs: Vec<FrameBuffers> = batches.iter().map(|&(_, c)| FrameBuffers::new(t, accel, c)).collect::<Result<_>>()?;
+    let fbs: Vec<FrameBuffers> = batches.iter().map(|&(_, c)| FrameBuffers::new(t, accel, c * e)).collect::<Result<_>>()?;
     progress.set_length(map.o.passes as u64);
     let start = Instant::now();
     let mut stats = PhotonStats::default();
     for pass in 0..map.o.passes {
         let stored = map.trace_and_index(pass)?;
         let mut c = rt.begin();
-        for s in 0..map.o.eye_samples {
-            let sample = pass * map.o.eye_samples + s;
-            for (&(first, count), fb) in batches.iter().zip(&fbs) {
-                let p = eye_params(t, cam, &map.o, first, count, sample);
-                for k in path::path_passes(t, accel, &p, fb)? {
-                    rt.dispatch(&mut c, k.as_ref())?;
-                }
-                rt.dispatch(&mut c, &map.gather(pass, sample, count as u32, fb) as &dyn Kernel)?;
+        for (&(first, count), fb) in batches.iter().zip(&fbs) {
+            let p = eye_params(t, cam, &map.o, first, count, pass);
+            for k in path::path_passes(t, accel, &p, fb)? {
+                rt.dispatch(&mut c, k.as_ref())?;
             }
+            rt.dispatch(&mut c, &map.gather(pass, p.count, fb) as &dyn Kernel)?;
+            rt.dispatch(&mut c, &Film { params: p, paths: &fb.paths, radiance: &fb.radiance })?;
         }
         rt.submit(c)?;
         stats.passes += 1;
