@@ -46,7 +46,7 @@ fn cornell_256_closest_and_any_hit_cpu_vs_gpu() {
         .map(|(i, (r, h))| {
             let p = kdray_shared::RenderParams { seed: 5, light_count: lights.len() as u32, ..Default::default() };
             let (mut ray, mut path) = (*r, kdray_shared::PathState::start(i as u32));
-            shade::path_step(&p, &mut ray, h, &mut path, &scene.triangles, &scene.materials, &lights).0
+            shade::path_step(&p, 0, &mut ray, h, &mut path, &scene.triangles, &scene.materials, &lights).0
         })
         .collect();
     let (ca, ga) = (cpu.any_hits(Accel::BRUTE, &shadow).unwrap(), gpu.any_hits(Accel::BRUTE, &shadow).unwrap());

@@ -417,3 +417,33 @@ fn native_and_gpu_trace_the_same_photons_and_render_the_same_image() {
         assert!(e < 0.002, "{spec}: GPU and native images differ by {:.3} %", e * 100.0);
     }
 }
+
+#[test]
+fn whole_path_photon_kernel_traces_the_photons_of_the_pass_per_bounce_schedule() {
+    let s = scene::load("cornell-glass").unwrap();
+    let tr = tree(&s);
+    for rt in runtimes() {
+        let t = Tracer::new(rt, &s, Some(&tr)).unwrap();
+        let mut sets = Vec::new();
+        for fused in [true, false] {
+            let o = PhotonOptions { fused, ..small_options(IndexKind::Grid, 20_000) };
+            let mut map = PhotonMap::new(&t, Accel::kd(Algorithm::ShortStack(3)), Some(&tr), s.surface_area(), o).unwrap();
+            map.trace_and_index(0).unwrap();
+            let mut v: Vec<_> = map.read_records().unwrap().iter().map(|p| (p.position.map(f32::to_bits), p.power, p.packed)).collect();
+            v.sort();
+            sets.push(v);
+        }
+        assert!(sets[0].len() > 20_000, "{}", rt.name());
+        if rt.is_native() {
+            assert!(sets[0] == sets[1], "{}: the whole-path kernel and the per-bounce passes store different photons", rt.name());
+        } else {
+            // Two SPIR-V kernels may round differently (contracted multiply-adds): the same
+            // number of photons, the same total position to 1e-5.
+            let (a, b) = (&sets[0], &sets[1]);
+            assert!((a.len() as f64 - b.len() as f64).abs() <= 1e-3 * a.len() as f64, "{}: {} vs {} photons", rt.name(), a.len(), b.len());
+            let sum = |v: &[([u32; 3], u32, u32)]| v.iter().map(|p| p.0.iter().map(|b| f32::from_bits(*b) as f64).sum::<f64>()).sum::<f64>();
+            let (sa, sb) = (sum(a), sum(b));
+            assert!((sa - sb).abs() <= 1e-5 * sa.abs(), "{}: {sa} vs {sb}", rt.name());
+        }
+    }
+}

@@ -198,6 +198,11 @@ pub enum Command {
         /// Gather kernel (photon).
         #[arg(long, value_enum, default_value = "constant")]
         filter: FilterArg,
+        /// A pass per bounce and query (camera or emission, then closest-hit query, shading,
+        /// shadow query per bounce: the wavefront schedule) instead of whole photon and eye
+        /// paths in one kernel each (path, photon; the same paths).
+        #[arg(long)]
+        split_passes: bool,
         #[command(flatten)]
         build: BuildArgs,
     },
@@ -391,6 +396,7 @@ pub fn run(cli: Cli) -> Result<()> {
             emission,
             photon_direct,
             filter,
+            split_passes,
             build,
         } => {
             let opts = build.options()?;
@@ -466,11 +472,12 @@ pub fn run(cli: Cli) -> Result<()> {
                 let start = Instant::now();
                 let r = match integrator {
                     IntegratorArg::Direct | IntegratorArg::Path => {
-                        let o = if integrator == IntegratorArg::Direct {
+                        let mut o = if integrator == IntegratorArg::Direct {
                             PathOptions::direct(seed, bounces)
                         } else {
                             PathOptions::path(seed, bounces, spp)
                         };
+                        o.fused = !split_passes;
                         let pb = progress("render");
                         let r = path::render(&t, accel, &cam, &o, &pb)?;
                         pb.finish_and_clear();
@@ -492,6 +499,7 @@ pub fn run(cli: Cli) -> Result<()> {
                                 FilterArg::Epanechnikov => kdray_shared::FILTER_EPANECHNIKOV,
                             },
                             photon_bounces: 16,
+                            fused: !split_passes,
                             caustic_radius: 0.5,
                             eye_bounces: bounces,
                             eye_samples: spp,

@@ -750,3 +750,180 @@ impl Kernel for Gather<'_> {
         }
     }
 }
+
+type PhotonFn<'s> = fn(u32, &PhotonParams, &KdTree, &[Light], &[Material], &mut HostStore<'s, Photon>, &mut HostStore<'s, u32>);
+
+struct PickPhotons<'s>(PhantomData<&'s ()>);
+impl<'s> WithTraversal for PickPhotons<'s> {
+    type Out = PhotonFn<'s>;
+    fn call<T: Traversal + PacketTraversal>(self) -> PhotonFn<'s> {
+        photon::trace_photon::<Kd<T>, HostStore<'s, Photon>, HostStore<'s, u32>>
+    }
+}
+
+/// Whole photon paths, emission to absorption, one photon per thread (`photon::trace_photon`):
+/// brute force or a kd traversal, one ray at a time.
+pub struct TracePhotons<'a> {
+    pub params: PhotonParams,
+    pub lights: &'a Buffer<Light>,
+    pub scene: SceneBinds<'a>,
+    pub materials: &'a Buffer<Material>,
+    pub photons: &'a Buffer<Photon>,
+    pub counter: &'a Buffer<u32>,
+    entry: String,
+    cpu: PhotonFn<'a>,
+}
+
+impl<'a> TracePhotons<'a> {
+    /// `None` for packets (photon paths are traced one ray at a time).
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        method: TraceMethod,
+        params: PhotonParams,
+        lights: &'a Buffer<Light>,
+        scene: SceneBinds<'a>,
+        materials: &'a Buffer<Material>,
+        photons: &'a Buffer<Photon>,
+        counter: &'a Buffer<u32>,
+    ) -> Option<Self> {
+        let (suffix, cpu): (String, PhotonFn<'a>) = match method {
+            TraceMethod::Brute => ("brute".into(), photon::trace_photon::<Brute, HostStore<'a, Photon>, HostStore<'a, u32>>),
+            TraceMethod::Single(a) => (kernel_suffix(a), kdray_shared::kdtree::with_traversal(a, PickPhotons(PhantomData))),
+            TraceMethod::Packet(_) => return None,
+        };
+        Some(TracePhotons { params, lights, scene, materials, photons, counter, entry: format!("photon_paths_{suffix}"), cpu })
+    }
+}
+
+impl Kernel for TracePhotons<'_> {
+    fn entry(&self) -> Cow<'static, str> {
+        self.entry.clone().into()
+    }
+    fn params(&self) -> &[u8] {
+        bytemuck::bytes_of(&self.params)
+    }
+    fn bindings(&self) -> Vec<Bind<'_>> {
+        let [tris, nodes, prims] = self.scene.binds();
+        vec![read("lights", self.lights), tris, nodes, prims, read("materials", self.materials), write("photons", self.photons), write("counter", self.counter)]
+    }
+    fn threads(&self) -> u32 {
+        self.params.count
+    }
+    fn run(&self, t: u32) {
+        self.run_many(t..t + 1)
+    }
+    fn run_many(&self, ts: std::ops::Range<u32>) {
+        // SAFETY: called by the native runtime during the dispatch of this pass, which holds
+        // its bindings; items write only the photon slots they take from the counter atomically.
+        unsafe {
+            let p = &self.params;
+            let tree = KdTree {
+                nodes: self.scene.nodes.host(),
+                prims: self.scene.prims.host(),
+                tris: self.scene.tris.host(),
+                bounds: kdray_shared::aabb::Aabb { min: p.bounds_min, max: p.bounds_max },
+            };
+            let (lights, materials) = (self.lights.host(), self.materials.host());
+            let (mut photons, mut counter) = (self.photons.host_store(), self.counter.host_store());
+            for t in ts {
+                (self.cpu)(t, p, &tree, lights, materials, &mut photons, &mut counter)
+            }
+        }
+    }
+}
+
+type PathFn<'s> = fn(u32, &RenderParams, &KdTree, &[Material], &[Light], &mut HostStore<'s, Ray>, &mut HostStore<'s, PathState>, &mut HostStore<'s, Hit>);
+
+struct PickPaths<'s>(PhantomData<&'s ()>);
+impl<'s> WithTraversal for PickPaths<'s> {
+    type Out = PathFn<'s>;
+    fn call<T: Traversal + PacketTraversal>(self) -> PathFn<'s> {
+        render::trace_path::<Kd<T>, HostStore<'s, Ray>, HostStore<'s, PathState>, HostStore<'s, Hit>>
+    }
+}
+
+/// Whole eye paths, camera to end, one pixel sample per thread (`render::trace_path`): brute
+/// force or a kd traversal, one ray at a time.
+pub struct TracePaths<'a> {
+    pub params: RenderParams,
+    /// The traversals' root box: min, max (`[f32; 4]` each).
+    pub scene_box: &'a Buffer<[f32; 4]>,
+    pub scene: SceneBinds<'a>,
+    pub materials: &'a Buffer<Material>,
+    pub lights: &'a Buffer<Light>,
+    pub rays: &'a Buffer<Ray>,
+    pub paths: &'a Buffer<PathState>,
+    pub primary_hits: &'a Buffer<Hit>,
+    entry: String,
+    cpu: PathFn<'a>,
+}
+
+impl<'a> TracePaths<'a> {
+    /// `None` for packets (paths are traced one ray at a time).
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        method: TraceMethod,
+        params: RenderParams,
+        scene_box: &'a Buffer<[f32; 4]>,
+        scene: SceneBinds<'a>,
+        materials: &'a Buffer<Material>,
+        lights: &'a Buffer<Light>,
+        rays: &'a Buffer<Ray>,
+        paths: &'a Buffer<PathState>,
+        primary_hits: &'a Buffer<Hit>,
+    ) -> Option<Self> {
+        let (suffix, cpu): (String, PathFn<'a>) = match method {
+            TraceMethod::Brute => ("brute".into(), render::trace_path::<Brute, HostStore<'a, Ray>, HostStore<'a, PathState>, HostStore<'a, Hit>>),
+            TraceMethod::Single(a) => (kernel_suffix(a), kdray_shared::kdtree::with_traversal(a, PickPaths(PhantomData))),
+            TraceMethod::Packet(_) => return None,
+        };
+        Some(TracePaths { params, scene_box, scene, materials, lights, rays, paths, primary_hits, entry: format!("eye_paths_{suffix}"), cpu })
+    }
+}
+
+impl Kernel for TracePaths<'_> {
+    fn entry(&self) -> Cow<'static, str> {
+        self.entry.clone().into()
+    }
+    fn params(&self) -> &[u8] {
+        bytemuck::bytes_of(&self.params)
+    }
+    fn bindings(&self) -> Vec<Bind<'_>> {
+        let [tris, nodes, prims] = self.scene.binds();
+        vec![
+            read("scene_box", self.scene_box),
+            tris,
+            nodes,
+            prims,
+            read("materials", self.materials),
+            read("lights", self.lights),
+            write("rays", self.rays),
+            write("paths", self.paths),
+            write("primary_hits", self.primary_hits),
+        ]
+    }
+    fn threads(&self) -> u32 {
+        self.params.count
+    }
+    fn run(&self, t: u32) {
+        self.run_many(t..t + 1)
+    }
+    fn run_many(&self, ts: std::ops::Range<u32>) {
+        // SAFETY: called by the native runtime during the dispatch of this pass, which holds
+        // its bindings; item t writes rays[t], paths[t] and primary_hits[t] only.
+        unsafe {
+            let b = self.scene_box.host();
+            let tree = KdTree {
+                nodes: self.scene.nodes.host(),
+                prims: self.scene.prims.host(),
+                tris: self.scene.tris.host(),
+                bounds: kdray_shared::aabb::Aabb { min: [b[0][0], b[0][1], b[0][2]], max: [b[1][0], b[1][1], b[1][2]] },
+            };
+            let (materials, lights) = (self.materials.host(), self.lights.host());
+            let (mut rays, mut paths, mut hits) = (self.rays.host_store(), self.paths.host_store(), self.primary_hits.host_store());
+            for t in ts {
+                (self.cpu)(t, &self.params, &tree, materials, lights, &mut rays, &mut paths, &mut hits)
+            }
+        }
+    }
+}

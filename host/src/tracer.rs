@@ -40,6 +40,8 @@ pub struct Tracer<'r> {
     pub materials: Buffer<Material>,
     pub lights: Buffer<Light>,
     pub structure: AccelStructure,
+    /// The traversals' root box (min, max; `trace_bounds`) for the whole-path kernels.
+    pub scene_box: Buffer<[f32; 4]>,
     /// Bound in place of the tree's arrays by kernels that do not use them (brute force).
     no_nodes: Buffer<KdNode>,
     no_prims: Buffer<u32>,
@@ -61,7 +63,13 @@ impl<'r> Tracer<'r> {
             Some(t) => AccelStructure::KdTree { nodes: rt.upload("kd-tree node", &t.nodes)?, prims: rt.upload("kd-tree primitive index", &t.prims)?, bounds: t.bounds },
             None => AccelStructure::Triangles,
         };
+        let root = match &structure {
+            AccelStructure::KdTree { bounds, .. } => *bounds,
+            AccelStructure::Triangles => Aabb { min: lo.to_array(), max: hi.to_array() },
+        };
+        let scene_box = rt.upload("scene box", &[[root.min[0], root.min[1], root.min[2], 0.0], [root.max[0], root.max[1], root.max[2], 0.0]])?;
         Ok(Tracer {
+            scene_box,
             rt,
             tris: rt.upload("triangle", &scene.triangles)?,
             materials: rt.upload("material", &scene.materials)?,
@@ -75,6 +83,15 @@ impl<'r> Tracer<'r> {
             tri_count: scene.triangles.len() as u64,
             pool: std::sync::Mutex::new(Vec::new()),
         })
+    }
+
+    /// The box the traversals start from (the kd-tree's root cell, else the scene's box).
+    pub fn trace_bounds(&self) -> ([f32; 3], [f32; 3]) {
+        let p = self.params(crate::accel::Accel::BRUTE, 0);
+        match &self.structure {
+            AccelStructure::KdTree { bounds, .. } => (bounds.min, bounds.max),
+            AccelStructure::Triangles => (p.bounds_min, p.bounds_max),
+        }
     }
 
     /// The scene's box (min, max).

@@ -1,7 +1,11 @@
-//! Photon mapping's entry points (`kdray_shared::photon`): emission, one bounce, the index's
-//! keys and permutation, and the gather, for both photon indices (hashed grid, kd leaves).
+//! Photon mapping's entry points (`kdray_shared::photon`): emission, one bounce, whole photon
+//! paths (emission to absorption in one thread, for brute force and two kd traversals), the
+//! index's keys and permutation, and the gather, for both photon indices (hashed grid, kd
+//! leaves).
 use crate::Atomics;
-use kdray_shared::kdtree::KdNode;
+use kdray_shared::aabb::Aabb;
+use kdray_shared::kdtree::{Full, KdNode, KdTree, Short};
+use kdray_shared::trace::{Brute, Kd};
 use kdray_shared::photon::{self, HashGrid, KdCells};
 use kdray_shared::{Hit, IndexParams, LeafCells, Light, Material, PathState, Photon, PhotonParams, PhotonPath, Ray, Triangle};
 use spirv_std::glam::UVec3;
@@ -103,3 +107,30 @@ pub fn gather_kd(
     let index = KdCells { nodes, leaves, cells: params.cells };
     photon::gather(crate::item(id, groups), params, &index, rays, photons, offsets, paths);
 }
+
+/// One entry point running `photon::trace_photon::<$m>` (a photon from the light to its
+/// absorption per thread).
+macro_rules! photon_paths {
+    ($name:ident, $m:ty) => {
+        #[spirv(compute(threads(64)))]
+        pub fn $name(
+            #[spirv(global_invocation_id)] id: UVec3,
+            #[spirv(num_workgroups)] groups: UVec3,
+            #[spirv(push_constant)] params: &PhotonParams,
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] lights: &[Light],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] tris: &[Triangle],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] nodes: &[KdNode],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] prims: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] materials: &[Material],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] photons: &mut [Photon],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] counter: &mut [u32],
+        ) {
+            let tree = KdTree { nodes, prims, tris, bounds: Aabb { min: params.bounds_min, max: params.bounds_max } };
+            photon::trace_photon::<$m, _, _>(crate::item(id, groups), params, &tree, lights, materials, photons, &mut Atomics(counter));
+        }
+    };
+}
+
+photon_paths!(photon_paths_brute, Brute);
+photon_paths!(photon_paths_stack, Kd<Full>);
+photon_paths!(photon_paths_shortstack3, Kd<Short<3>>);

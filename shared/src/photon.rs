@@ -19,7 +19,9 @@
 //!
 //! Random numbers come from the stream (pass seed, bounce, photon): a pass is a function of
 //! its index and the scene only, so passes can run anywhere and be summed.
-use crate::kdtree::KdNode;
+use crate::kdtree::{KdNode, KdTree};
+use crate::query::{Answer, Closest, Query};
+use crate::trace::Method;
 use crate::kernel::{AtomicStore, Store};
 use crate::math::{
     add3, cosine_direction, cross3, direction_around, dot3, exp2i, floor_u32, fract_pos, mul3, normalize3, scale3, sub3,
@@ -211,10 +213,68 @@ pub fn emit<R: Store<Ray> + ?Sized, S: Store<PhotonPath> + ?Sized>(i: u32, p: &P
 // ---------------------------------------------------------------------------------------------
 // Bounces
 
-/// What happens to photon `i` at its `p.bounce`-th hit (the closest-hit answer `hits[i]`):
-/// stored at a diffuse surface (unless it comes straight from a light and direct light is
-/// left to shadow rays), then continued or absorbed; the counter `counter[0]` counts every
-/// photon to store, including those past `p.capacity` (which are not stored).
+/// What happens to photon `photon` of the pass at its `bounce`-th hit `hit`: stored at a
+/// diffuse surface (unless it comes straight from a light and direct light is left to shadow
+/// rays), then continued (`ray` replaced, `path.flags` active) or absorbed; the counter
+/// `counter[0]` counts every photon to store, including those past `p.capacity` (which are not
+/// stored).
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+pub fn bounce_step<O, C>(
+    p: &PhotonParams,
+    bounce: u32,
+    photon: u32,
+    ray: &mut Ray,
+    hit: &Hit,
+    tris: &[Triangle],
+    materials: &[Material],
+    path: &mut PhotonPath,
+    photons: &mut O,
+    counter: &mut C,
+) where
+    O: Store<Photon> + ?Sized,
+    C: AtomicStore + ?Sized,
+{
+    let mut next = NO_RAY;
+    let mut flags = 0;
+    if hit.is_hit() {
+        let tri = &tris[hit.prim as usize];
+        let mat = &materials[tri.material as usize];
+        let (pt, n) = surface_point(tri, hit, ray);
+        let mut rng = Rng::new(p.seed ^ (bounce + 1).wrapping_mul(0x9E37_79B9), photon);
+        let last = bounce >= p.max_bounces;
+        if is_specular(mat) {
+            if !last {
+                next = specular_bounce(mat, tri, pt, normalize3(ray.dir), rng.next_f32());
+                if mat.flags & MAT_MIRROR != 0 {
+                    path.power = mul3(path.power, mat.diffuse);
+                }
+                flags = PHOTON_ACTIVE | (path.flags & PHOTON_SPECULAR_ONLY);
+            }
+        } else {
+            if bounce > 0 || p.flags & PHOTON_STORE_DIRECT != 0 {
+                let caustic = p.caustic_map != 0 && bounce > 0 && path.flags & PHOTON_SPECULAR_ONLY != 0;
+                let slot = counter.atomic_add(0, 1);
+                if slot < p.capacity {
+                    photons.store(slot as usize, Photon::new(pt, path.power, n, normalize3(ray.dir), caustic, rng.next_f32()));
+                }
+            }
+            let a = mat.diffuse;
+            let q = a[0].max(a[1]).max(a[2]).min(1.0);
+            if !last && rng.next_f32() < q {
+                let d = cosine_direction(n, rng.next_f32(), rng.next_f32());
+                next = Ray::new(offset(pt, n), d, 0.0, f32::INFINITY);
+                path.power = mul3(path.power, scale3(a, 1.0 / q));
+                flags = PHOTON_ACTIVE;
+            }
+        }
+    }
+    path.flags = flags;
+    *ray = next;
+}
+
+/// Photon `i` of the dispatch at its `p.bounce`-th hit (the closest-hit answer `hits[i]`):
+/// `bounce_step` on the photon's state in the buffers.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 pub fn bounce<R, S, O, C>(
@@ -241,45 +301,41 @@ pub fn bounce<R, S, O, C>(
     if path.flags & PHOTON_ACTIVE == 0 {
         return;
     }
-    let hit = hits[k];
-    let ray = rays.load(k);
-    let mut next = NO_RAY;
-    let mut flags = 0;
-    if hit.is_hit() {
-        let tri = &tris[hit.prim as usize];
-        let mat = &materials[tri.material as usize];
-        let (pt, n) = surface_point(tri, &hit, &ray);
-        let mut rng = Rng::new(p.seed ^ (p.bounce + 1).wrapping_mul(0x9E37_79B9), p.first + i);
-        let last = p.bounce >= p.max_bounces;
-        if is_specular(mat) {
-            if !last {
-                next = specular_bounce(mat, tri, pt, normalize3(ray.dir), rng.next_f32());
-                if mat.flags & MAT_MIRROR != 0 {
-                    path.power = mul3(path.power, mat.diffuse);
-                }
-                flags = PHOTON_ACTIVE | (path.flags & PHOTON_SPECULAR_ONLY);
-            }
-        } else {
-            if p.bounce > 0 || p.flags & PHOTON_STORE_DIRECT != 0 {
-                let caustic = p.caustic_map != 0 && p.bounce > 0 && path.flags & PHOTON_SPECULAR_ONLY != 0;
-                let slot = counter.atomic_add(0, 1);
-                if slot < p.capacity {
-                    photons.store(slot as usize, Photon::new(pt, path.power, n, normalize3(ray.dir), caustic, rng.next_f32()));
-                }
-            }
-            let a = mat.diffuse;
-            let q = a[0].max(a[1]).max(a[2]).min(1.0);
-            if !last && rng.next_f32() < q {
-                let d = cosine_direction(n, rng.next_f32(), rng.next_f32());
-                next = Ray::new(offset(pt, n), d, 0.0, f32::INFINITY);
-                path.power = mul3(path.power, scale3(a, 1.0 / q));
-                flags = PHOTON_ACTIVE;
-            }
-        }
-    }
-    path.flags = flags;
-    rays.store(k, next);
+    let mut ray = rays.load(k);
+    bounce_step(p, p.bounce, p.first + i, &mut ray, &hits[k], tris, materials, &mut path, photons, counter);
+    rays.store(k, ray);
     paths.store(k, path);
+}
+
+/// Photon `i` of the dispatch from the light to its absorption in one item: `emit`, then per
+/// bounce (up to `p.max_bounces`) a closest-hit query by `M` and `bounce_step` — the same
+/// photons as the schedule of separate passes, without a dispatch per bounce or state in
+/// buffers between them.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+pub fn trace_photon<M: Method, O: Store<Photon> + ?Sized, C: AtomicStore + ?Sized>(
+    i: u32,
+    p: &PhotonParams,
+    tree: &KdTree,
+    lights: &[Light],
+    materials: &[Material],
+    photons: &mut O,
+    counter: &mut C,
+) {
+    if i >= p.count {
+        return;
+    }
+    let photon = p.first + i;
+    let (mut ray, power) = emit_photon(lights, p.light_count, p.emitted, emission_numbers(p.seed, photon, p.spread));
+    let mut path = PhotonPath { power, flags: if ray.is_valid() { PHOTON_ACTIVE | PHOTON_SPECULAR_ONLY } else { 0 } };
+    let mut bounce = 0;
+    while bounce <= p.max_bounces && path.flags & PHOTON_ACTIVE != 0 {
+        let mut q = Closest::new(&ray);
+        M::find(tree, &ray, &mut q);
+        let hit = q.answer();
+        bounce_step(p, bounce, photon, &mut ray, &hit, tree.tris, materials, &mut path, photons, counter);
+        bounce += 1;
+    }
 }
 
 // ---------------------------------------------------------------------------------------------

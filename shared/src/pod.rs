@@ -279,6 +279,11 @@ pub struct PhotonParams {
     /// The specular materials' photons go to the caustic map (1) or the global one (0).
     pub caustic_map: u32,
     pub _pad: u32,
+    /// The scene box (the kd-tree's root cell) for `photon::trace_photon`.
+    pub bounds_min: [f32; 3],
+    pub _pad1: u32,
+    pub bounds_max: [f32; 3],
+    pub _pad2: u32,
 }
 
 /// `PhotonPath::flags`: the photon is still travelling.

@@ -3,6 +3,9 @@
 //! bounce, or shade with one shadow ray and continue / end / become a gather point),
 //! accumulation once the shadow ray's answer is known, and the film that sums the samples.
 use crate::camera;
+use crate::kdtree::KdTree;
+use crate::query::{Answer, AnyHit, Closest, Query};
+use crate::trace::Method;
 use crate::kernel::Store;
 use crate::pod::{Hit, ItemParams, Light, Material, PathState, RenderParams, ShadeTerms, Triangle, RENDER_JITTER};
 use crate::ray::Ray;
@@ -14,18 +17,25 @@ use crate::shade;
 #[inline(always)]
 pub fn camera_rays<R: Store<Ray> + ?Sized, P: Store<PathState> + ?Sized>(i: u32, p: &RenderParams, rays: &mut R, paths: &mut P) {
     if i < p.count {
-        let b = p.pixels();
-        let pixel = camera::pixel(&p.camera, p.first + i % b);
-        let stream = pixel.wrapping_add((i / b).wrapping_mul(p.camera.width * p.camera.height));
-        let ray = if p.flags & RENDER_JITTER != 0 {
-            let mut rng = Rng::new(p.seed ^ 0x6A09_E667, stream);
-            camera::jittered_ray(&p.camera, pixel, rng.next_f32(), rng.next_f32())
-        } else {
-            camera::primary_ray(&p.camera, pixel)
-        };
+        let (ray, path) = camera_sample(i, p);
         rays.store(i as usize, ray);
-        paths.store(i as usize, PathState::start(stream));
+        paths.store(i as usize, path);
     }
+}
+
+/// The primary ray and fresh path state of path `i` of the batch.
+#[inline(always)]
+pub fn camera_sample(i: u32, p: &RenderParams) -> (Ray, PathState) {
+    let b = p.pixels();
+    let pixel = camera::pixel(&p.camera, p.first + i % b);
+    let stream = pixel.wrapping_add((i / b).wrapping_mul(p.camera.width * p.camera.height));
+    let ray = if p.flags & RENDER_JITTER != 0 {
+        let mut rng = Rng::new(p.seed ^ 0x6A09_E667, stream);
+        camera::jittered_ray(&p.camera, pixel, rng.next_f32(), rng.next_f32())
+    } else {
+        camera::primary_ray(&p.camera, pixel)
+    };
+    (ray, PathState::start(stream))
 }
 
 /// One bounce of path `i`: reflect at a mirror (updating `rays[i]` in place) or shade.
@@ -52,7 +62,7 @@ pub fn path_step<R, P, SR, ST>(
         let k = i as usize;
         let mut ray = rays.load(k);
         let mut path = paths.load(k);
-        let (shadow, t) = shade::path_step(p, &mut ray, &hits[k], &mut path, tris, materials, lights);
+        let (shadow, t) = shade::path_step(p, p.bounce, &mut ray, &hits[k], &mut path, tris, materials, lights);
         rays.store(k, ray);
         paths.store(k, path);
         shadow_rays.store(k, shadow);
@@ -106,4 +116,54 @@ pub fn rng_fill<O: Store<[u32; 4]> + ?Sized>(i: u32, p: &ItemParams, out: &mut O
         let mut rng = Rng::new(p.seed, p.first + i);
         out.store(i as usize, [rng.next_u32(), rng.next_u32(), rng.next_u32(), rng.next_u32()]);
     }
+}
+
+/// Path `i` of the batch from the camera to its end in one item: `camera_rays`, then per
+/// bounce (up to `p.max_bounces`) a closest-hit query by `M`, `shade::path_step`, the shadow
+/// ray's any-hit query and `shade::accumulate` — the same paths as the schedule of separate
+/// passes, without a dispatch per bounce. Leaves the path (and its gather point, if any, in
+/// `rays[i]`) for the gather and the film; the primary hit goes to `primary_hits[i]`.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+pub fn trace_path<M: Method, R, P, H>(
+    i: u32,
+    p: &RenderParams,
+    tree: &KdTree,
+    materials: &[Material],
+    lights: &[Light],
+    rays: &mut R,
+    paths: &mut P,
+    primary_hits: &mut H,
+) where
+    R: Store<Ray> + ?Sized,
+    P: Store<PathState> + ?Sized,
+    H: Store<Hit> + ?Sized,
+{
+    if i >= p.count {
+        return;
+    }
+    let k = i as usize;
+    // The camera sample in registers: writing it to `rays`/`paths` and reading it back in the
+    // same invocation read zeros on NVIDIA's driver 580 (lavapipe read the values written).
+    let (mut ray, mut path) = camera_sample(i, p);
+    let mut bounce = 0;
+    while bounce <= p.max_bounces && path.is_active() {
+        let mut q = Closest::new(&ray);
+        M::find(tree, &ray, &mut q);
+        let hit = q.answer();
+        if bounce == 0 {
+            primary_hits.store(k, hit);
+        }
+        let (shadow, terms) = shade::path_step(p, bounce, &mut ray, &hit, &mut path, tree.tris, materials, lights);
+        let mut occluded = false;
+        if shadow.is_valid() {
+            let mut s = AnyHit::new(&shadow);
+            M::find(tree, &shadow, &mut s);
+            occluded = s.answer() != 0;
+        }
+        shade::accumulate(&mut path, &terms, occluded);
+        bounce += 1;
+    }
+    rays.store(k, ray);
+    paths.store(k, path);
 }

@@ -189,7 +189,7 @@ fn end(path: &mut PathState, ray: &mut Ray) {
     *ray = NO_RAY;
 }
 
-/// One step of a pixel's path at its `p.bounce`-th hit (see the module notes). A specular
+/// One step of a pixel's path at its `bounce`-th hit (see the module notes). A specular
 /// bounce before `p.max_bounces` replaces `ray` in place; a diffuse hit (or any hit at the last
 /// bounce) is shaded with one shadow ray and then continues, ends, or becomes a gather point.
 /// Returns the shadow ray (`NO_RAY` if none) and the terms to `accumulate`, weighted by the
@@ -197,8 +197,10 @@ fn end(path: &mut PathState, ray: &mut Ray) {
 /// `gather_point`), so later bounces trace nothing for it. Random numbers come from the stream
 /// of (`p.seed`, bounce, pixel).
 #[inline(always)]
+#[allow(clippy::too_many_arguments)]
 pub fn path_step(
     p: &RenderParams,
+    bounce: u32,
     ray: &mut Ray,
     hit: &Hit,
     path: &mut PathState,
@@ -221,9 +223,9 @@ pub fn path_step(
         terms.base = mul3(path.throughput, mat.emission);
     }
     // Each bounce draws from its own random stream.
-    let mut rng = Rng::new(p.seed ^ p.bounce.wrapping_mul(0x9E37_79B9), path.pixel);
+    let mut rng = Rng::new(p.seed ^ bounce.wrapping_mul(0x9E37_79B9), path.pixel);
     let (pt, n) = surface_point(tri, hit, ray);
-    if is_specular(mat) && p.bounce < p.max_bounces {
+    if is_specular(mat) && bounce < p.max_bounces {
         *ray = specular_bounce(mat, tri, pt, ray.dir, rng.next_f32());
         if mat.flags & MAT_MIRROR != 0 {
             path.throughput = mul3(path.throughput, mat.diffuse);
@@ -243,7 +245,7 @@ pub fn path_step(
         path.throughput = scale3(mul3(path.throughput, mat.diffuse), INV_PI);
         path.flags = PATH_GATHER;
         *ray = gather_point(pt, n);
-    } else if diffuse < p.diffuse_bounces && p.bounce < p.max_bounces {
+    } else if diffuse < p.diffuse_bounces && bounce < p.max_bounces {
         let a = mat.diffuse;
         let q = a[0].max(a[1]).max(a[2]).min(1.0);
         if rng.next_f32() < q {

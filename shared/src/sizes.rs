@@ -26,7 +26,7 @@ layout! {
     crate::pod::Camera => 64,
     crate::pod::TraceParams => 48,
     crate::pod::RenderParams => 112,
-    crate::pod::PhotonParams => 48,
+    crate::pod::PhotonParams => 80,
     crate::pod::PhotonPath => 16,
     crate::pod::Photon => 20,
     crate::pod::IndexParams => 64,

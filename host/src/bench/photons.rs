@@ -81,7 +81,7 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
     o.progress.set_length(specs.len() as u64 * 2);
     let speed_header: Vec<String> = [
         "scene", "triangles", "photons", "rays traced", "bounces", "bounces/photon", "stored", "trace ms", "M bounces/s",
-        "index grid ms", "index kd ms", "eye ms", "gather grid ms", "gather kd ms", "image",
+        "split trace ms", "index grid ms", "grid keys / sort / permute ms", "cells, slots", "index kd ms", "eye ms", "gather grid ms", "gather kd ms", "image",
     ]
     .map(String::from)
     .to_vec();
@@ -104,7 +104,12 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
         let (rays, bounces) = grid.count_bounces(0)?;
         let stored = grid.trace_and_index(0)?;
         let trace_ms = time_recorded(rt, copies, &|c| grid.record_trace(c, 0))?;
+        let split = PhotonMap::new(&t, accel, Some(tree), area, PhotonOptions { fused: false, ..base.clone() })?;
+        let split_ms = time_recorded(rt, copies, &|c| split.record_trace(c, 0))?;
+        drop(split);
         let index_grid = time_recorded(rt, copies, &|c| grid.record_index(c, 0))?;
+        let steps: Vec<f64> = (1..=2).map(|s| time_recorded(rt, copies, &|c| grid.record_index_steps(c, 0, s))).collect::<Result<_>>()?;
+        let (cells, slots) = grid.index_size();
         let mut kd = PhotonMap::new(&t, accel, Some(tree), area, PhotonOptions { index: IndexKind::Kd, ..base.clone() })?;
         kd.trace_and_index(0)?;
         let index_kd = time_recorded(rt, copies, &|c| kd.record_index(c, 0))?;
@@ -112,11 +117,11 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
         let n = (o.size * o.size) as usize;
         let (eye_ms, gather_grid, gather_kd) = if t.batch_size(accel, n) >= n {
             let fb = FrameBuffers::new(&t, accel, n)?;
-            let po = PathOptions { seed: 1, bounces: 16, diffuse_bounces: 0, spp: 1, jitter: true };
+            let po = PathOptions { seed: 1, bounces: 16, diffuse_bounces: 0, spp: 1, jitter: true, fused: true };
             let mut p = path::params(&t, &cam, &po, 0, n, 0);
             p.flags |= kdray_shared::RENDER_GATHER;
             let eye = time_recorded(rt, copies, &|c| {
-                for k in path::path_passes(&t, accel, &p, &fb)? {
+                for k in path::eye_passes(&t, accel, &p, &fb, true)? {
                     rt.dispatch(c, k.as_ref())?;
                 }
                 Ok(())
@@ -134,7 +139,10 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
             stored.to_string(),
             format!("{trace_ms:.3}"),
             format!("{:.1}", bounces as f64 / trace_ms / 1e3),
+            format!("{split_ms:.3}"),
             format!("{index_grid:.3}"),
+            format!("{:.3} / {:.3} / {:.3}", steps[0], steps[1] - steps[0], index_grid - steps[1]),
+            format!("{cells}, {slots}"),
             format!("{index_kd:.3}"),
             eye_ms,
             gather_grid,

@@ -10,7 +10,7 @@
 //! so the GPU renders one while the host reads the last.
 use super::RenderOutput;
 use crate::accel::Accel;
-use crate::kernels::{Accumulate, CameraRays, Film, PathStep};
+use crate::kernels::{Accumulate, CameraRays, Film, PathStep, TracePaths};
 use crate::runtime::{cast, Buffer, Kernel};
 use crate::tracer::{LeafLists, Tracer};
 use anyhow::{bail, Result};
@@ -32,17 +32,19 @@ pub struct PathOptions {
     pub spp: u32,
     /// Camera rays through random points of their pixels (else the centres).
     pub jitter: bool,
+    /// Whole paths in one kernel where there is one (else a pass per bounce and query).
+    pub fused: bool,
 }
 
 impl PathOptions {
     /// Direct lighting: one sample through each pixel centre, `bounces` specular bounces.
     pub fn direct(seed: u32, bounces: u32) -> Self {
-        PathOptions { seed, bounces, diffuse_bounces: 0, spp: 1, jitter: false }
+        PathOptions { seed, bounces, diffuse_bounces: 0, spp: 1, jitter: false, fused: true }
     }
     /// Path tracing with next-event estimation: `spp` jittered samples, paths up to `bounces`
     /// long.
     pub fn path(seed: u32, bounces: u32, spp: u32) -> Self {
-        PathOptions { seed, bounces, diffuse_bounces: bounces, spp, jitter: true }
+        PathOptions { seed, bounces, diffuse_bounces: bounces, spp, jitter: true, fused: true }
     }
 }
 
@@ -140,6 +142,32 @@ pub fn path_passes<'a>(t: &'a Tracer, accel: Accel, p: &RenderParams, fb: &'a Fr
     Ok(v)
 }
 
+/// The whole-path kernel for `p` (camera to end in one thread), when the module has one for
+/// this way of finding hits (brute force, full stack, short stack of 3; one ray per thread, one
+/// kernel per query).
+pub fn fused_pass<'a>(t: &'a Tracer, accel: Accel, p: &RenderParams, fb: &'a FrameBuffers) -> Option<TracePaths<'a>> {
+    use crate::accel::{Grouping, Pipeline, Structure};
+    use crate::kernels::TraceMethod;
+    if accel.pipeline != Pipeline::Monolithic || accel.grouping != Grouping::Single {
+        return None;
+    }
+    let method = if accel.structure == Structure::Brute { TraceMethod::Brute } else { TraceMethod::Single(accel.traversal) };
+    let k = TracePaths::new(method, *p, &t.scene_box, t.scene_binds(), &t.materials, &t.lights, &fb.rays, &fb.paths, &fb.primary_hits)?;
+    let m = crate::runtime::module::module_info().ok()?;
+    crate::runtime::module::find_entry(m, &k.entry()).map(|_| k)
+}
+
+/// The eye paths of `p` up to their ends: the whole-path kernel if `fused` and there is one,
+/// else `path_passes`.
+pub fn eye_passes<'a>(t: &'a Tracer, accel: Accel, p: &RenderParams, fb: &'a FrameBuffers, fused: bool) -> Result<Vec<Box<dyn Kernel + 'a>>> {
+    if fused {
+        if let Some(k) = fused_pass(t, accel, p, fb) {
+            return Ok(vec![Box::new(k)]);
+        }
+    }
+    path_passes(t, accel, p, fb)
+}
+
 /// `path_passes` and the film.
 pub fn passes<'a>(t: &'a Tracer, accel: Accel, p: &RenderParams, fb: &'a FrameBuffers) -> Result<Vec<Box<dyn Kernel + 'a>>> {
     let mut v = path_passes(t, accel, p, fb)?;
@@ -188,10 +216,11 @@ pub fn render(t: &Tracer, accel: Accel, cam: &Camera, o: &PathOptions, progress:
         for g in 0..groups {
             let s = per_dispatch.min(o.spp - g * per_dispatch);
             let p = with_samples(params(t, cam, o, first, count, g), s);
-            for k in passes(t, accel, &p, fb)? {
+            for k in eye_passes(t, accel, &p, fb, o.fused)? {
                 rt.dispatch(&mut c, k.as_ref())?;
                 recorded += 1;
             }
+            rt.dispatch(&mut c, &Film { params: p, paths: &fb.paths, radiance: &fb.radiance })?;
             progress.inc((count * s as usize) as u64);
             if recorded >= DISPATCHES_PER_SUBMIT && g + 1 < groups {
                 rt.submit(std::mem::replace(&mut c, rt.begin()))?;

@@ -19,7 +19,7 @@ use super::path::{self, FrameBuffers, PathOptions};
 use super::RenderOutput;
 use crate::accel::Accel;
 use crate::kdtree::KdTreeData;
-use crate::kernels::{EmitPhotons, Film, Gather, IndexBinds, PermutePhotons, PhotonBounce, PhotonKeys};
+use crate::kernels::{EmitPhotons, Film, Gather, IndexBinds, PermutePhotons, PhotonBounce, PhotonKeys, TracePhotons};
 use crate::runtime::{cast, Buffer, Kernel, Runtime};
 use crate::sort::CountingSort;
 use crate::tracer::{LeafLists, Tracer};
@@ -67,6 +67,8 @@ pub struct PhotonOptions {
     pub filter: u32,
     /// Photon bounces traced.
     pub photon_bounces: u32,
+    /// Whole photon paths in one kernel where there is one (else a pass per bounce).
+    pub fused: bool,
     /// Specular bounces of eye paths.
     pub eye_bounces: u32,
     /// Eye samples per pixel and pass (all gather from the pass's photons).
@@ -88,6 +90,7 @@ impl Default for PhotonOptions {
             photon_direct: false,
             filter: FILTER_CONSTANT,
             photon_bounces: 16,
+            fused: true,
             eye_bounces: 16,
             eye_samples: 4,
             seed: 1,
@@ -141,6 +144,8 @@ pub struct PhotonMap<'t> {
     cells: u32,
     maps: u32,
     bounds: ([f32; 3], [f32; 3]),
+    /// The kd-tree's root cell (the traversals' scene box).
+    tree_bounds: ([f32; 3], [f32; 3]),
     /// The kd index: the tree's nodes on the device, each leaf's box (host), the cell table.
     kd: Option<(Vec<Option<([f32; 3], [f32; 3])>>, Buffer<LeafCells>)>,
     r0: f32,
@@ -237,6 +242,7 @@ impl<'t> PhotonMap<'t> {
             cells,
             maps,
             bounds: (lo, hi),
+            tree_bounds: t.trace_bounds(),
             kd,
             r0,
             o,
@@ -286,11 +292,32 @@ impl<'t> PhotonMap<'t> {
             capacity: self.capacity,
             spread: self.o.spread,
             caustic_map: (self.maps > 1) as u32,
-            _pad: 0,
+            bounds_min: self.tree_bounds.0,
+            bounds_max: self.tree_bounds.1,
+            ..Default::default()
         }
     }
 
-    /// Records tracing pass `pass`'s photons into `c`: records and counter filled.
+    /// The whole-path photon kernel for `p`, when the module has one for this way of finding
+    /// hits (brute force, full stack, short stack of 3; one ray per thread, one kernel per
+    /// query) and `fused` is on.
+    fn fused(&self, p: PhotonParams) -> Option<TracePhotons<'_>> {
+        use crate::accel::{Grouping, Pipeline, Structure};
+        use crate::kernels::TraceMethod;
+        let a = self.accel;
+        if !self.o.fused || a.pipeline != Pipeline::Monolithic || a.grouping != Grouping::Single {
+            return None;
+        }
+        let method = if a.structure == Structure::Brute { TraceMethod::Brute } else { TraceMethod::Single(a.traversal) };
+        let t = self.t;
+        let k = TracePhotons::new(method, p, &t.lights, t.scene_binds(), &t.materials, &self.records, &self.counter)?;
+        let m = crate::runtime::module::module_info().ok()?;
+        crate::runtime::module::find_entry(m, &k.entry()).map(|_| k)
+    }
+
+    /// Records tracing pass `pass`'s photons into `c`: records and counter filled. One kernel
+    /// per batch of photons where there is a whole-path kernel (`fused`), else the emission
+    /// and per bounce the closest-hit query passes and the bounce.
     pub fn record_trace(&self, c: &mut crate::runtime::Commands, pass: u32) -> Result<()> {
         let t = self.t;
         let rt = t.rt;
@@ -300,6 +327,11 @@ impl<'t> PhotonMap<'t> {
         while first < self.o.photons {
             let count = (self.batch as u32).min(self.o.photons - first);
             let p = PhotonParams { count, first, ..base };
+            if let Some(k) = self.fused(p) {
+                rt.dispatch(c, &k)?;
+                first += count;
+                continue;
+            }
             rt.dispatch(c, &EmitPhotons { params: p, lights: &t.lights, rays: &self.rays, paths: &self.paths })?;
             for bounce in 0..=self.o.photon_bounces {
                 for k in t.query_passes::<Closest>(self.accel, count as usize, &self.rays, &self.hits, self.lists.as_ref())? {
@@ -365,11 +397,27 @@ impl<'t> PhotonMap<'t> {
     /// Records building the index of the stored photons into `c`: keys, counting sort,
     /// permutation into `sorted`.
     pub fn record_index(&self, c: &mut crate::runtime::Commands, pass: u32) -> Result<()> {
+        self.record_index_steps(c, pass, 3)
+    }
+
+    /// The first `steps` of the index build (1: keys, 2: + counting sort, 3: + permutation),
+    /// for timing the parts.
+    pub fn record_index_steps(&self, c: &mut crate::runtime::Commands, pass: u32, steps: u32) -> Result<()> {
         let rt = self.t.rt;
         let p = self.index_params(pass, self.capacity);
         rt.dispatch(c, &PhotonKeys { params: p, index: self.index_binds(), photons: &self.records, counter: &self.counter, keys: &self.keys })?;
-        self.sort.record(c, &self.keys, self.capacity, &self.order)?;
-        rt.dispatch(c, &PermutePhotons { params: p, photons: &self.records, order: &self.order, offsets: &self.sort.offsets, sorted: &self.sorted })
+        if steps > 1 {
+            self.sort.record(c, &self.keys, self.capacity, &self.order)?;
+        }
+        if steps > 2 {
+            rt.dispatch(c, &PermutePhotons { params: p, photons: &self.records, order: &self.order, offsets: &self.sort.offsets, sorted: &self.sorted })?;
+        }
+        Ok(())
+    }
+
+    /// Cells per map and slots (capacity) of the index.
+    pub fn index_size(&self) -> (u32, u32) {
+        (self.cells, self.capacity)
     }
 
     /// The gather pass of pass `pass` over `count` eye paths.
@@ -472,7 +520,7 @@ impl<'t> PhotonMap<'t> {
 /// Eye-path parameters of pass `pass`: `o.eye_samples` jittered samples per pixel, ending at
 /// gather points.
 pub fn eye_params(t: &Tracer, cam: &Camera, o: &PhotonOptions, first: usize, count: usize, pass: u32) -> RenderParams {
-    let po = PathOptions { seed: pass_seed(o.seed ^ 0x0E7E_0E7E, pass), bounces: o.eye_bounces, diffuse_bounces: 0, spp: 1, jitter: true };
+    let po = PathOptions { seed: pass_seed(o.seed ^ 0x0E7E_0E7E, pass), bounces: o.eye_bounces, diffuse_bounces: 0, spp: 1, jitter: true, fused: o.fused };
     let mut p = path::params(t, cam, &po, first, count, 0);
     p.seed = po.seed;
     p.sample = pass;
@@ -498,7 +546,7 @@ pub fn render(map: &mut PhotonMap, cam: &Camera, progress: &ProgressBar) -> Resu
         let mut c = rt.begin();
         for (&(first, count), fb) in batches.iter().zip(&fbs) {
             let p = eye_params(t, cam, &map.o, first, count, pass);
-            for k in path::path_passes(t, accel, &p, fb)? {
+            for k in path::eye_passes(t, accel, &p, fb, map.o.fused)? {
                 rt.dispatch(&mut c, k.as_ref())?;
             }
             rt.dispatch(&mut c, &map.gather(pass, p.count, fb) as &dyn Kernel)?;
