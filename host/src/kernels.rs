@@ -451,7 +451,7 @@ impl Kernel for CountKeys<'_> {
     }
 }
 
-/// Counting sort, pass 2: one step of the prefix sum over the cells (`sort::scan_step`).
+/// Counting sort, pass 3: one step of the prefix sum over the chunk sums (`sort::scan_step`).
 pub struct ScanStep<'a> {
     pub params: SortParams,
     pub input: &'a Buffer<u32>,
@@ -478,9 +478,37 @@ impl Kernel for ScanStep<'_> {
     }
 }
 
-/// Counting sort, pass 3: cell offsets and scatter cursors (`sort::exclusive`).
+/// Counting sort, pass 2: the sums of chunks of counts (`sort::chunk_sums`).
+pub struct ChunkSums<'a> {
+    pub params: SortParams,
+    pub counts: &'a Buffer<u32>,
+    pub sums: &'a Buffer<u32>,
+}
+
+impl Kernel for ChunkSums<'_> {
+    fn entry(&self) -> Cow<'static, str> {
+        "chunk_sums".into()
+    }
+    fn params(&self) -> &[u8] {
+        bytemuck::bytes_of(&self.params)
+    }
+    fn bindings(&self) -> Vec<Bind<'_>> {
+        vec![read("counts", self.counts), write("sums", self.sums)]
+    }
+    fn threads(&self) -> u32 {
+        sort::chunks(self.params.cells)
+    }
+    fn run(&self, t: u32) {
+        // SAFETY: called by the native runtime during the dispatch of this pass, which holds
+        // its bindings; item t writes sums[t] only.
+        unsafe { sort::chunk_sums(t, &self.params, self.counts.host(), &mut self.sums.host_store()) }
+    }
+}
+
+/// Counting sort, pass 4: cell offsets and scatter cursors (`sort::exclusive`).
 pub struct ExclusiveOffsets<'a> {
     pub params: SortParams,
+    pub counts: &'a Buffer<u32>,
     pub inclusive: &'a Buffer<u32>,
     pub offsets: &'a Buffer<u32>,
     pub cursor: &'a Buffer<u32>,
@@ -494,7 +522,7 @@ impl Kernel for ExclusiveOffsets<'_> {
         bytemuck::bytes_of(&self.params)
     }
     fn bindings(&self) -> Vec<Bind<'_>> {
-        vec![read("inclusive", self.inclusive), write("offsets", self.offsets), write("cursor", self.cursor)]
+        vec![read("counts", self.counts), read("inclusive", self.inclusive), write("offsets", self.offsets), write("cursor", self.cursor)]
     }
     fn threads(&self) -> u32 {
         self.params.cells + 1
@@ -502,11 +530,13 @@ impl Kernel for ExclusiveOffsets<'_> {
     fn run(&self, t: u32) {
         // SAFETY: called by the native runtime during the dispatch of this pass, which holds
         // its bindings; item t writes offsets[t] and cursor[t] only.
-        unsafe { sort::exclusive(t, &self.params, self.inclusive.host(), &mut self.offsets.host_store(), &mut self.cursor.host_store()) }
+        unsafe {
+            sort::exclusive(t, &self.params, self.counts.host(), self.inclusive.host(), &mut self.offsets.host_store(), &mut self.cursor.host_store())
+        }
     }
 }
 
-/// Counting sort, pass 4: every item to its slot (`sort::scatter`).
+/// Counting sort, pass 5: every item to its slot (`sort::scatter`).
 pub struct ScatterKeys<'a> {
     pub params: SortParams,
     pub keys: &'a Buffer<u32>,

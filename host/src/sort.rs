@@ -1,8 +1,8 @@
 //! Counting sort by cell on either runtime, from the `kdray_shared::sort` kernels: clear the
-//! histogram, count, prefix-sum it (⌈log2 cells⌉ scan steps), turn it into offsets and cursors,
-//! scatter. The photon index sorts photons by cell with it; the passes are recorded into the
+//! histogram, count, sum chunks of 32 counts, prefix-sum the chunk sums (⌈log2 chunks⌉ scan
+//! steps), turn them and the counts into offsets and cursors, scatter. The photon index sorts photons by cell with it; the passes are recorded into the
 //! caller's commands, so a schedule runs them with its other passes.
-use crate::kernels::{CountKeys, ExclusiveOffsets, ScanStep, ScatterKeys};
+use crate::kernels::{ChunkSums, CountKeys, ExclusiveOffsets, ScanStep, ScatterKeys};
 use crate::runtime::{Buffer, Commands, Runtime};
 use anyhow::{bail, Result};
 use kdray_shared::SortParams;
@@ -24,11 +24,12 @@ impl<'r> CountingSort<'r> {
             bail!("a counting sort needs 1 to 2^32 - 2 cells, not {cells}");
         }
         let n = cells as usize;
+        let chunks = kdray_shared::sort::chunks(cells) as usize;
         Ok(CountingSort {
             rt,
             cells,
             counts: rt.alloc("cell counts", n)?,
-            scan: [rt.alloc("cell scan", n)?, rt.alloc("cell scan", n)?],
+            scan: [rt.alloc("chunk scan", chunks)?, rt.alloc("chunk scan", chunks)?],
             offsets: rt.alloc("cell offsets", n + 1)?,
             cursor: rt.alloc("cell cursors", n)?,
         })
@@ -44,17 +45,19 @@ impl<'r> CountingSort<'r> {
         let p = SortParams { count: n, cells: self.cells, step: 0, _pad: 0 };
         rt.clear(c, self.counts.raw())?;
         rt.dispatch(c, &CountKeys { params: p, keys, counts: &self.counts })?;
-        let mut src = &self.counts;
+        rt.dispatch(c, &ChunkSums { params: p, counts: &self.counts, sums: &self.scan[0] })?;
+        let chunks = kdray_shared::sort::chunks(self.cells);
+        let mut src = &self.scan[0];
         let mut step = 1u32;
-        let mut k = 0;
-        while step < self.cells {
+        let mut k = 1;
+        while step < chunks {
             let dst = &self.scan[k % 2];
-            rt.dispatch(c, &ScanStep { params: SortParams { step, ..p }, input: src, output: dst })?;
+            rt.dispatch(c, &ScanStep { params: SortParams { cells: chunks, step, ..p }, input: src, output: dst })?;
             src = dst;
             k += 1;
             step = step.saturating_mul(2);
         }
-        rt.dispatch(c, &ExclusiveOffsets { params: p, inclusive: src, offsets: &self.offsets, cursor: &self.cursor })?;
+        rt.dispatch(c, &ExclusiveOffsets { params: p, counts: &self.counts, inclusive: src, offsets: &self.offsets, cursor: &self.cursor })?;
         rt.dispatch(c, &ScatterKeys { params: p, keys, cursor: &self.cursor, order })
     }
 }

@@ -28,15 +28,27 @@ pub fn scan_step(
 }
 
 #[spirv(compute(threads(64)))]
+pub fn chunk_sums(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(num_workgroups)] groups: UVec3,
+    #[spirv(push_constant)] params: &SortParams,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] counts: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] sums: &mut [u32],
+) {
+    sort::chunk_sums(crate::item(id, groups), params, counts, sums);
+}
+
+#[spirv(compute(threads(64)))]
 pub fn exclusive_offsets(
     #[spirv(global_invocation_id)] id: UVec3,
     #[spirv(num_workgroups)] groups: UVec3,
     #[spirv(push_constant)] params: &SortParams,
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] inclusive: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] offsets: &mut [u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] cursor: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] counts: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] inclusive: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] offsets: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] cursor: &mut [u32],
 ) {
-    sort::exclusive(crate::item(id, groups), params, inclusive, offsets, cursor);
+    sort::exclusive(crate::item(id, groups), params, counts, inclusive, offsets, cursor);
 }
 
 #[spirv(compute(threads(64)))]

@@ -315,6 +315,21 @@ impl<'t> PhotonMap<'t> {
         crate::runtime::module::find_entry(m, &k.entry()).map(|_| k)
     }
 
+    /// The bounce pass of the photons of dispatch `p` at bounce `bounce`.
+    fn bounce_pass(&self, p: PhotonParams, bounce: u32) -> PhotonBounce<'_> {
+        let t = self.t;
+        PhotonBounce {
+            params: PhotonParams { bounce, ..p },
+            rays: &self.rays,
+            hits: &self.hits,
+            tris: &t.tris,
+            materials: &t.materials,
+            paths: &self.paths,
+            photons: &self.records,
+            counter: &self.counter,
+        }
+    }
+
     /// Records tracing pass `pass`'s photons into `c`: records and counter filled. One kernel
     /// per batch of photons where there is a whole-path kernel (`fused`), else the emission
     /// and per bounce the closest-hit query passes and the bounce.
@@ -337,19 +352,7 @@ impl<'t> PhotonMap<'t> {
                 for k in t.query_passes::<Closest>(self.accel, count as usize, &self.rays, &self.hits, self.lists.as_ref())? {
                     rt.dispatch(c, k.as_ref())?;
                 }
-                rt.dispatch(
-                    c,
-                    &PhotonBounce {
-                        params: PhotonParams { bounce, ..p },
-                        rays: &self.rays,
-                        hits: &self.hits,
-                        tris: &t.tris,
-                        materials: &t.materials,
-                        paths: &self.paths,
-                        photons: &self.records,
-                        counter: &self.counter,
-                    },
-                )?;
+                rt.dispatch(c, &self.bounce_pass(p, bounce))?;
             }
             first += count;
         }
@@ -479,19 +482,7 @@ impl<'t> PhotonMap<'t> {
                 }
                 let pr = rt.read_back_of(&mut c, &self.rays, count as usize)?;
                 let ph = rt.read_back_of(&mut c, &self.hits, count as usize)?;
-                rt.dispatch(
-                    &mut c,
-                    &PhotonBounce {
-                        params: PhotonParams { bounce, ..p },
-                        rays: &self.rays,
-                        hits: &self.hits,
-                        tris: &t.tris,
-                        materials: &t.materials,
-                        paths: &self.paths,
-                        photons: &self.records,
-                        counter: &self.counter,
-                    },
-                )?;
+                rt.dispatch(&mut c, &self.bounce_pass(p, bounce))?;
                 rt.submit(c)?;
                 let rs: Vec<Ray> = cast(rt.wait(pr)?);
                 let hs: Vec<Hit> = cast(rt.wait(ph)?);
