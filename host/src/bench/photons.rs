@@ -100,13 +100,13 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
         // Speed: one pass of `photons` photons, both indices.
         let mut row = vec![scene.name.clone(), scene.triangles.len().to_string(), photons.to_string()];
         let base = PhotonOptions { photons, passes: 1, ..Default::default() };
-        let mut grid = PhotonMap::new(&t, accel, Some(tree), area, base.clone())?;
-        let (rays, bounces) = grid.count_bounces(0)?;
-        let stored = grid.trace_and_index(0)?;
-        let trace_ms = time_recorded(rt, copies, &|c| grid.record_trace(c, 0))?;
         let split = PhotonMap::new(&t, accel, Some(tree), area, PhotonOptions { fused: false, ..base.clone() })?;
+        let (rays, bounces) = split.count_bounces(0)?;
         let split_ms = time_recorded(rt, copies, &|c| split.record_trace(c, 0))?;
         drop(split);
+        let mut grid = PhotonMap::new(&t, accel, Some(tree), area, base.clone())?;
+        let stored = grid.trace_and_index(0)?;
+        let trace_ms = time_recorded(rt, copies, &|c| grid.record_trace(c, 0))?;
         let index_grid = time_recorded(rt, copies, &|c| grid.record_index(c, 0))?;
         let steps: Vec<f64> = (1..=2).map(|s| time_recorded(rt, copies, &|c| grid.record_index_steps(c, 0, s))).collect::<Result<_>>()?;
         let (cells, slots) = grid.index_size();

@@ -151,6 +151,28 @@ pub struct PhotonMap<'t> {
     r0: f32,
 }
 
+/// The query kernels' method of `accel` where it is one ray per thread and one kernel per query.
+fn trace_method(accel: Accel) -> Option<crate::kernels::TraceMethod> {
+    use crate::accel::{Grouping, Pipeline, Structure};
+    use crate::kernels::TraceMethod;
+    if accel.pipeline != Pipeline::Monolithic || accel.grouping != Grouping::Single {
+        return None;
+    }
+    Some(if accel.structure == Structure::Brute { TraceMethod::Brute } else { TraceMethod::Single(accel.traversal) })
+}
+
+/// Whether the module has a whole-path photon kernel for `accel` (brute force, full stack,
+/// short stack of 3; one ray per thread, one kernel per query).
+fn whole_path_kernel(accel: Accel) -> bool {
+    let Some(m) = trace_method(accel) else { return false };
+    let suffix = match m {
+        crate::kernels::TraceMethod::Brute => "brute".to_string(),
+        crate::kernels::TraceMethod::Single(a) => crate::kernels::kernel_suffix(a),
+        crate::kernels::TraceMethod::Packet(_) => return false,
+    };
+    crate::runtime::module::module_info().is_ok_and(|info| crate::runtime::module::find_entry(info, &format!("photon_paths_{suffix}")).is_some())
+}
+
 /// Every node's box if it is a leaf (walking from the root cell).
 fn leaf_boxes(nodes: &[KdNode], lo: [f32; 3], hi: [f32; 3]) -> Vec<Option<([f32; 3], [f32; 3])>> {
     let mut out = vec![None; nodes.len()];
@@ -173,7 +195,7 @@ fn leaf_boxes(nodes: &[KdNode], lo: [f32; 3], hi: [f32; 3]) -> Vec<Option<([f32;
 
 /// The kd index's cell table for radius `r`: each leaf split into cells of about 2r (at least
 /// one, at most 1023 per axis), coarser everywhere if that would exceed `budget` cells.
-fn leaf_cells(boxes: &[Option<([f32; 3], [f32; 3])>], r: f32, budget: u64) -> (Vec<LeafCells>, u32) {
+fn leaf_cells(boxes: &[Option<([f32; 3], [f32; 3])>], r: f32, budget: u64) -> Vec<LeafCells> {
     let mut size = 2.0 * r as f64;
     loop {
         let mut table = vec![LeafCells::default(); boxes.len()];
@@ -186,7 +208,7 @@ fn leaf_cells(boxes: &[Option<([f32; 3], [f32; 3])>], r: f32, budget: u64) -> (V
             }
         }
         if total <= budget || size > 1e30 {
-            return (table, total.max(1) as u32);
+            return table;
         }
         size *= ((total as f64 / budget as f64).cbrt()).max(1.05);
     }
@@ -209,6 +231,8 @@ impl<'t> PhotonMap<'t> {
         }
         let rt = t.rt;
         let batch = t.batch_size(accel, o.photons as usize);
+        // The per-bounce schedule's buffers only where it runs (no whole-path kernel).
+        let split = if o.fused && whole_path_kernel(accel) { 1 } else { batch };
         // Stored photons per emitted one: about the number of diffuse bounces; sized up after
         // the first pass if needed.
         let capacity = o.photons.saturating_mul(2).max(1024);
@@ -228,10 +252,10 @@ impl<'t> PhotonMap<'t> {
             t,
             accel,
             batch,
-            rays: rt.alloc("photon ray", batch)?,
-            paths: rt.alloc("photon path", batch)?,
-            hits: rt.alloc("photon hit", batch)?,
-            lists: t.leaf_lists(accel, batch)?,
+            rays: rt.alloc("photon ray", split)?,
+            paths: rt.alloc("photon path", split)?,
+            hits: rt.alloc("photon hit", split)?,
+            lists: t.leaf_lists(accel, split)?,
             records: rt.alloc("photon", capacity as usize)?,
             sorted: rt.alloc("sorted photon", capacity as usize)?,
             counter: rt.alloc("photon counter", 1)?,
@@ -298,21 +322,14 @@ impl<'t> PhotonMap<'t> {
         }
     }
 
-    /// The whole-path photon kernel for `p`, when the module has one for this way of finding
-    /// hits (brute force, full stack, short stack of 3; one ray per thread, one kernel per
-    /// query) and `fused` is on.
+    /// The whole-path photon kernel for `p`, when `fused` is on and there is one
+    /// (`whole_path_kernel`).
     fn fused(&self, p: PhotonParams) -> Option<TracePhotons<'_>> {
-        use crate::accel::{Grouping, Pipeline, Structure};
-        use crate::kernels::TraceMethod;
-        let a = self.accel;
-        if !self.o.fused || a.pipeline != Pipeline::Monolithic || a.grouping != Grouping::Single {
+        if !self.o.fused || !whole_path_kernel(self.accel) {
             return None;
         }
-        let method = if a.structure == Structure::Brute { TraceMethod::Brute } else { TraceMethod::Single(a.traversal) };
         let t = self.t;
-        let k = TracePhotons::new(method, p, &t.lights, t.scene_binds(), &t.materials, &self.records, &self.counter)?;
-        let m = crate::runtime::module::module_info().ok()?;
-        crate::runtime::module::find_entry(m, &k.entry()).map(|_| k)
+        TracePhotons::new(trace_method(self.accel)?, p, &t.lights, t.scene_binds(), &t.materials, &self.records, &self.counter)
     }
 
     /// The bounce pass of the photons of dispatch `p` at bounce `bounce`.
@@ -394,7 +411,7 @@ impl<'t> PhotonMap<'t> {
     /// The kd index's cell table of pass `pass` (`None` for the grid).
     pub fn leaf_table(&self, pass: u32) -> Option<Vec<LeafCells>> {
         let (boxes, _) = self.kd.as_ref()?;
-        Some(leaf_cells(boxes, pass_radius(self.r0, self.o.alpha, pass), self.cells as u64).0)
+        Some(leaf_cells(boxes, pass_radius(self.r0, self.o.alpha, pass), self.cells as u64))
     }
 
     /// Records building the index of the stored photons into `c`: keys, counting sort,
@@ -458,10 +475,14 @@ impl<'t> PhotonMap<'t> {
     }
 
     /// Photon rays traced and photon bounces (hits) of pass `pass`, counted from the hits of
-    /// every bounce (a separate counting run: the timed runs read nothing back).
+    /// every bounce of the per-bounce schedule (a separate counting run: the timed runs read
+    /// nothing back).
     pub fn count_bounces(&self, pass: u32) -> Result<(u64, u64)> {
         let t = self.t;
         let rt = t.rt;
+        if self.rays.len() < self.batch {
+            bail!("counting photon bounces needs the per-bounce schedule (PhotonOptions::fused off)");
+        }
         let (mut rays, mut hits) = (0u64, 0u64);
         rt.finish()?;
         let mut c = rt.begin();
