@@ -3,6 +3,7 @@
 //! packets of four) and the pipeline (one kernel per query, or the decomposed traverse → leaf
 //! list → intersect → fallback). `Accel` names one combination; `Accel::parse` reads the CLI's
 //! names and rejects combinations that do not exist.
+use crate::kernels::TraceMethod;
 use anyhow::{bail, Result};
 use kdray_shared::kdtree::{Algorithm, MAX_SHORT_STACK};
 
@@ -117,6 +118,24 @@ impl Accel {
 
     pub fn is_packet(self) -> bool {
         self.grouping == Grouping::Packet4
+    }
+
+    /// The query kernels' method where rays go one per thread and one kernel per query (brute
+    /// force or a single-ray kd traversal; `None` for packets and the decomposed pipeline).
+    pub fn one_ray_method(self) -> Option<TraceMethod> {
+        if self.pipeline != Pipeline::Monolithic || self.grouping != Grouping::Single {
+            return None;
+        }
+        Some(if self.structure == Structure::Brute { TraceMethod::Brute } else { TraceMethod::Single(self.traversal) })
+    }
+
+    /// The method of a whole-path kernel family (entry points `<prefix>_<method>`: photon or
+    /// eye paths) for this way of finding hits, if the module has that entry point (brute
+    /// force, full stack, short stack of 3).
+    pub fn whole_path_method(self, prefix: &str) -> Option<TraceMethod> {
+        let m = self.one_ray_method()?;
+        let info = crate::runtime::module::module_info().ok()?;
+        crate::runtime::module::find_entry(info, &format!("{prefix}_{}", m.suffix())).map(|_| m)
     }
 
     /// Whether a kd-tree is needed.

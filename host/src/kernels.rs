@@ -90,12 +90,23 @@ impl<'s, Q: QueryKind> WithTraversal for Pick<'s, Q> {
 impl<'a, Q: QueryKind> Trace<'a, Q> {
     pub fn new(method: TraceMethod, params: TraceParams, rays: &'a Buffer<Ray>, scene: SceneBinds<'a>, out: &'a Buffer<Q::Out>) -> Self {
         use kdray_shared::kdtree::with_traversal;
-        let (suffix, packet, cpu): (String, bool, TraceFn<'a, Q::Out>) = match method {
-            TraceMethod::Brute => ("brute".into(), false, trace::trace::<Brute, Q, HostStore<'a, Q::Out>>),
-            TraceMethod::Single(a) => (kernel_suffix(a), false, with_traversal(a, Pick::<'a, Q>(false, PhantomData))),
-            TraceMethod::Packet(a) => (format!("packet_{}", kernel_suffix(a)), true, with_traversal(a, Pick::<'a, Q>(true, PhantomData))),
+        let (packet, cpu): (bool, TraceFn<'a, Q::Out>) = match method {
+            TraceMethod::Brute => (false, trace::trace::<Brute, Q, HostStore<'a, Q::Out>>),
+            TraceMethod::Single(a) => (false, with_traversal(a, Pick::<'a, Q>(false, PhantomData))),
+            TraceMethod::Packet(a) => (true, with_traversal(a, Pick::<'a, Q>(true, PhantomData))),
         };
-        Trace { params, rays, scene, out, entry: format!("{}_{suffix}", Q::PREFIX), packet, cpu }
+        Trace { params, rays, scene, out, entry: format!("{}_{}", Q::PREFIX, method.suffix()), packet, cpu }
+    }
+}
+
+impl TraceMethod {
+    /// The entry-point suffix (`brute`, `stack`, …, `packet_shortstack3`).
+    pub fn suffix(self) -> String {
+        match self {
+            TraceMethod::Brute => "brute".into(),
+            TraceMethod::Single(a) => kernel_suffix(a),
+            TraceMethod::Packet(a) => format!("packet_{}", kernel_suffix(a)),
+        }
     }
 }
 
@@ -805,6 +816,9 @@ pub struct TracePhotons<'a> {
 }
 
 impl<'a> TracePhotons<'a> {
+    /// Entry-point prefix (`photon_paths_<method>`).
+    pub const PREFIX: &'static str = "photon_paths";
+
     /// `None` for packets (photon paths are traced one ray at a time).
     #[allow(clippy::too_many_arguments)]
     pub fn new(
@@ -816,12 +830,12 @@ impl<'a> TracePhotons<'a> {
         photons: &'a Buffer<Photon>,
         counter: &'a Buffer<u32>,
     ) -> Option<Self> {
-        let (suffix, cpu): (String, PhotonFn<'a>) = match method {
-            TraceMethod::Brute => ("brute".into(), photon::trace_photon::<Brute, HostStore<'a, Photon>, HostStore<'a, u32>>),
-            TraceMethod::Single(a) => (kernel_suffix(a), kdray_shared::kdtree::with_traversal(a, PickPhotons(PhantomData))),
+        let cpu: PhotonFn<'a> = match method {
+            TraceMethod::Brute => photon::trace_photon::<Brute, HostStore<'a, Photon>, HostStore<'a, u32>>,
+            TraceMethod::Single(a) => kdray_shared::kdtree::with_traversal(a, PickPhotons(PhantomData)),
             TraceMethod::Packet(_) => return None,
         };
-        Some(TracePhotons { params, lights, scene, materials, photons, counter, entry: format!("photon_paths_{suffix}"), cpu })
+        Some(TracePhotons { params, lights, scene, materials, photons, counter, entry: format!("{}_{}", Self::PREFIX, method.suffix()), cpu })
     }
 }
 
@@ -889,6 +903,9 @@ pub struct TracePaths<'a> {
 }
 
 impl<'a> TracePaths<'a> {
+    /// Entry-point prefix (`eye_paths_<method>`).
+    pub const PREFIX: &'static str = "eye_paths";
+
     /// `None` for packets (paths are traced one ray at a time).
     #[allow(clippy::too_many_arguments)]
     pub fn new(
@@ -902,12 +919,12 @@ impl<'a> TracePaths<'a> {
         paths: &'a Buffer<PathState>,
         primary_hits: &'a Buffer<Hit>,
     ) -> Option<Self> {
-        let (suffix, cpu): (String, PathFn<'a>) = match method {
-            TraceMethod::Brute => ("brute".into(), render::trace_path::<Brute, HostStore<'a, Ray>, HostStore<'a, PathState>, HostStore<'a, Hit>>),
-            TraceMethod::Single(a) => (kernel_suffix(a), kdray_shared::kdtree::with_traversal(a, PickPaths(PhantomData))),
+        let cpu: PathFn<'a> = match method {
+            TraceMethod::Brute => render::trace_path::<Brute, HostStore<'a, Ray>, HostStore<'a, PathState>, HostStore<'a, Hit>>,
+            TraceMethod::Single(a) => kdray_shared::kdtree::with_traversal(a, PickPaths(PhantomData)),
             TraceMethod::Packet(_) => return None,
         };
-        Some(TracePaths { params, scene_box, scene, materials, lights, rays, paths, primary_hits, entry: format!("eye_paths_{suffix}"), cpu })
+        Some(TracePaths { params, scene_box, scene, materials, lights, rays, paths, primary_hits, entry: format!("{}_{}", Self::PREFIX, method.suffix()), cpu })
     }
 }
 

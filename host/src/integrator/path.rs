@@ -143,18 +143,10 @@ pub fn path_passes<'a>(t: &'a Tracer, accel: Accel, p: &RenderParams, fb: &'a Fr
 }
 
 /// The whole-path kernel for `p` (camera to end in one thread), when the module has one for
-/// this way of finding hits (brute force, full stack, short stack of 3; one ray per thread, one
-/// kernel per query).
+/// this way of finding hits (`Accel::whole_path_method`).
 pub fn fused_pass<'a>(t: &'a Tracer, accel: Accel, p: &RenderParams, fb: &'a FrameBuffers) -> Option<TracePaths<'a>> {
-    use crate::accel::{Grouping, Pipeline, Structure};
-    use crate::kernels::TraceMethod;
-    if accel.pipeline != Pipeline::Monolithic || accel.grouping != Grouping::Single {
-        return None;
-    }
-    let method = if accel.structure == Structure::Brute { TraceMethod::Brute } else { TraceMethod::Single(accel.traversal) };
-    let k = TracePaths::new(method, *p, &t.scene_box, t.scene_binds(), &t.materials, &t.lights, &fb.rays, &fb.paths, &fb.primary_hits)?;
-    let m = crate::runtime::module::module_info().ok()?;
-    crate::runtime::module::find_entry(m, &k.entry()).map(|_| k)
+    let method = accel.whole_path_method(TracePaths::PREFIX)?;
+    TracePaths::new(method, *p, &t.scene_box, t.scene_binds(), &t.materials, &t.lights, &fb.rays, &fb.paths, &fb.primary_hits)
 }
 
 /// The eye paths of `p` up to their ends: the whole-path kernel if `fused` and there is one,

@@ -151,28 +151,6 @@ pub struct PhotonMap<'t> {
     r0: f32,
 }
 
-/// The query kernels' method of `accel` where it is one ray per thread and one kernel per query.
-fn trace_method(accel: Accel) -> Option<crate::kernels::TraceMethod> {
-    use crate::accel::{Grouping, Pipeline, Structure};
-    use crate::kernels::TraceMethod;
-    if accel.pipeline != Pipeline::Monolithic || accel.grouping != Grouping::Single {
-        return None;
-    }
-    Some(if accel.structure == Structure::Brute { TraceMethod::Brute } else { TraceMethod::Single(accel.traversal) })
-}
-
-/// Whether the module has a whole-path photon kernel for `accel` (brute force, full stack,
-/// short stack of 3; one ray per thread, one kernel per query).
-fn whole_path_kernel(accel: Accel) -> bool {
-    let Some(m) = trace_method(accel) else { return false };
-    let suffix = match m {
-        crate::kernels::TraceMethod::Brute => "brute".to_string(),
-        crate::kernels::TraceMethod::Single(a) => crate::kernels::kernel_suffix(a),
-        crate::kernels::TraceMethod::Packet(_) => return false,
-    };
-    crate::runtime::module::module_info().is_ok_and(|info| crate::runtime::module::find_entry(info, &format!("photon_paths_{suffix}")).is_some())
-}
-
 /// Every node's box if it is a leaf (walking from the root cell).
 fn leaf_boxes(nodes: &[KdNode], lo: [f32; 3], hi: [f32; 3]) -> Vec<Option<([f32; 3], [f32; 3])>> {
     let mut out = vec![None; nodes.len()];
@@ -232,7 +210,7 @@ impl<'t> PhotonMap<'t> {
         let rt = t.rt;
         let batch = t.batch_size(accel, o.photons as usize);
         // The per-bounce schedule's buffers only where it runs (no whole-path kernel).
-        let split = if o.fused && whole_path_kernel(accel) { 1 } else { batch };
+        let split = if o.fused && accel.whole_path_method(TracePhotons::PREFIX).is_some() { 1 } else { batch };
         // Stored photons per emitted one: about the number of diffuse bounces; sized up after
         // the first pass if needed.
         let capacity = o.photons.saturating_mul(2).max(1024);
@@ -323,13 +301,14 @@ impl<'t> PhotonMap<'t> {
     }
 
     /// The whole-path photon kernel for `p`, when `fused` is on and there is one
-    /// (`whole_path_kernel`).
+    /// (`Accel::whole_path_method`).
     fn fused(&self, p: PhotonParams) -> Option<TracePhotons<'_>> {
-        if !self.o.fused || !whole_path_kernel(self.accel) {
+        if !self.o.fused {
             return None;
         }
         let t = self.t;
-        TracePhotons::new(trace_method(self.accel)?, p, &t.lights, t.scene_binds(), &t.materials, &self.records, &self.counter)
+        let method = self.accel.whole_path_method(TracePhotons::PREFIX)?;
+        TracePhotons::new(method, p, &t.lights, t.scene_binds(), &t.materials, &self.records, &self.counter)
     }
 
     /// The bounce pass of the photons of dispatch `p` at bounce `bounce`.
