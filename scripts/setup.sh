@@ -1,26 +1,35 @@
 #!/usr/bin/env bash
-# Installs what building and running kdray needs, skipping what is already there:
-# the pinned Rust toolchain (rust-toolchain.toml) with its components, a Vulkan loader plus
-# Mesa's lavapipe CPU driver when the machine has no Vulkan driver at all, and a TrueType font
-# for the benchmark plots (DejaVu) when there is none.
+# Installs what building and running kdray needs, skipping what is already there: a Vulkan
+# loader plus Mesa's lavapipe CPU driver when the machine has no Vulkan driver at all, and a
+# TrueType font for the benchmark plots (DejaVu) when there is none. The library builds on
+# stable Rust (the toolchain rustup already has).
+#
+# --kernels: also the nightly that rust-gpu pins (shader-crate/rust-toolchain.toml) with its
+# components, needed only to rebuild the committed SPIR-V (scripts/kernels.sh).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-toolchain=$(sed -n 's/^channel *= *"\(.*\)"/\1/p' rust-toolchain.toml)
-if ! command -v rustup >/dev/null; then
-  echo "error: rustup not found: install Rust from rustup.rs first" >&2
+if ! command -v rustup >/dev/null && ! command -v cargo >/dev/null; then
+  echo "error: no Rust toolchain found: install Rust from rustup.rs first" >&2
   exit 1
 fi
-if ! rustup toolchain list | grep -q "^${toolchain}"; then
-  echo "setup: installing Rust ${toolchain} (rust-src, rustc-dev, llvm-tools)"
-  rustup toolchain install "${toolchain}" --profile minimal --component rust-src,rustc-dev,llvm-tools
-fi
-installed=$(rustup component list --toolchain "${toolchain}" --installed)
-for c in rust-src rustc-dev llvm-tools; do
-  if ! grep -q "^${c}" <<<"${installed}"; then
-    rustup component add --toolchain "${toolchain}" "${c}"
+if [ "${1:-}" = "--kernels" ]; then
+  if ! command -v rustup >/dev/null; then
+    echo "error: rebuilding the kernels needs rustup (for the pinned nightly): install Rust from rustup.rs" >&2
+    exit 1
   fi
-done
+  toolchain=$(sed -n 's/^channel *= *"\(.*\)"/\1/p' shader-crate/rust-toolchain.toml)
+  if ! rustup toolchain list | grep -q "^${toolchain}"; then
+    echo "setup: installing Rust ${toolchain} (rust-src, rustc-dev, llvm-tools) for rust-gpu"
+    rustup toolchain install "${toolchain}" --profile minimal --component rust-src,rustc-dev,llvm-tools
+  fi
+  installed=$(rustup component list --toolchain "${toolchain}" --installed)
+  for c in rust-src rustc-dev llvm-tools; do
+    if ! grep -q "^${c}" <<<"${installed}"; then
+      rustup component add --toolchain "${toolchain}" "${c}"
+    fi
+  done
+fi
 
 have_loader() { ldconfig -p 2>/dev/null | grep -c 'libvulkan\.so\.1' >/dev/null; }
 have_driver() {

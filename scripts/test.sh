@@ -1,7 +1,10 @@
 #!/usr/bin/env bash
-# Sets up (toolchain, Vulkan/lavapipe if missing) and runs every test, the GPU ones included:
-# with KDRAY_REQUIRE_GPU=1 a test that finds no GPU adapter fails instead of skipping. The
-# shader crate's entry points are also built for the host and tested as plain functions.
+# Sets up (Vulkan/lavapipe if missing) and runs every test on stable Rust, the GPU ones
+# included: with KDRAY_REQUIRE_GPU=1 a test that finds no GPU adapter fails instead of
+# skipping. Also: the shader crate's entry points as plain functions on the host, the library's
+# examples, the doc tests, and a crate outside the workspace that depends on kdray as a user's
+# would (tests/downstream). The kernels are the committed SPIR-V (host/kernels/); tests/kernels.rs
+# checks it still matches its sources. CI also rebuilds it (.ci/run).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
@@ -9,4 +12,10 @@ export KDRAY_REQUIRE_GPU=1
 # Mesa probes Wayland during adapter enumeration; without this libwayland prints errors.
 export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-${TMPDIR:-/tmp}}"
 cargo test --release --workspace "$@"
-cargo test --release --manifest-path shader-crate/Cargo.toml --target-dir shader-crate/target/host "$@"
+cargo test --release --manifest-path shader-crate/Cargo.toml --target-dir target/shader-host "$@"
+# The examples, small.
+cargo run --release --example trace_arrays
+cargo run --release --example render_obj -- scenes/room.obj target/examples-room-obj.png 64 16
+cargo run --release --example render_toml -- scenes/room.toml target/examples-room-toml.png 64 4
+# A user's crate on stable Rust, without the command line's dependencies.
+cargo run --release --locked --manifest-path tests/downstream/Cargo.toml --target-dir target

@@ -114,7 +114,7 @@ fn cornell_render_matches_pixel_for_pixel() {
     let Some(g) = common::gpu() else { return };
     let scene = scene::load("cornell").unwrap();
     let cam = scene.camera.to_pod(256, 256);
-    let pb = indicatif::ProgressBar::hidden();
+    let pb = ();
     let c = direct::render(&Tracer::new(&NATIVE, &scene, None).unwrap(), Accel::BRUTE, &cam, 7, 4, &pb).unwrap();
     let gt = Tracer::new(g, &scene, None).unwrap();
     let r = direct::render(&gt, Accel::BRUTE, &cam, 7, 4, &pb).unwrap();
@@ -140,7 +140,7 @@ fn gpu_camera_rays_match_cpu() {
     // Rendering uses GPU-generated camera rays; their hits equal CPU camera rays' hits.
     let scene = scene::load("cornell").unwrap();
     let cam = scene.camera.to_pod(97, 61);
-    let r = direct::render(&Tracer::new(g, &scene, None).unwrap(), Accel::BRUTE, &cam, 1, 4, &indicatif::ProgressBar::hidden()).unwrap();
+    let r = direct::render(&Tracer::new(g, &scene, None).unwrap(), Accel::BRUTE, &cam, 1, 4, &()).unwrap();
     let rays: Vec<Ray> = (0..97 * 61).map(|i| camera::primary_ray(&cam, i)).collect();
     let ch = Tracer::new(&NATIVE, &scene, None).unwrap().closest_hits(Accel::BRUTE, &rays).unwrap();
     let (frac, max_rel) = diff(&ch, &r.hits);
@@ -155,7 +155,7 @@ fn mirror_reflections_match_and_reflect() {
     let scene = scene::load("cornell-mirror").unwrap();
     assert!(scene.has_mirror());
     let cam = scene.camera.to_pod(128, 128);
-    let pb = indicatif::ProgressBar::hidden();
+    let pb = ();
     let gt = Tracer::new(g, &scene, None).unwrap();
     let c = direct::render(&Tracer::new(&NATIVE, &scene, None).unwrap(), Accel::BRUTE, &cam, 3, 4, &pb).unwrap();
     let r = direct::render(&gt, Accel::BRUTE, &cam, 3, 4, &pb).unwrap();
@@ -183,7 +183,7 @@ fn packets_and_decomposed_pipeline_render_the_same_image() {
     let scene = scene::load("cornell-mirror").unwrap();
     let tree = build(&scene.triangles, &BuildOptions::default());
     let cam = scene.camera.to_pod(96, 96);
-    let pb = indicatif::ProgressBar::hidden();
+    let pb = ();
     for_each_runtime(&scene, &tree, |t| {
         let base = direct::render(&t, Accel::kd(Algorithm::Stack), &cam, 5, 4, &pb).unwrap();
         assert!(base.hits.iter().filter(|h| h.is_hit()).count() > 8000);
@@ -224,7 +224,7 @@ fn tiled_ray_order_renders_the_same_image() {
     let tree = build(&scene.triangles, &BuildOptions::default());
     let scan = scene.camera.to_pod(90, 70);
     let tiles = kdray_shared::Camera { order: kdray_shared::ORDER_TILES, ..scan };
-    let pb = indicatif::ProgressBar::hidden();
+    let pb = ();
     for_each_runtime(&scene, &tree, |t| {
         for accel in [Accel::kd(Algorithm::ShortStack(3)), Accel::packet(Algorithm::ShortStack(3))] {
             let a = direct::render(&t, accel, &scan, 9, 4, &pb).unwrap();
@@ -347,7 +347,7 @@ fn every_adapter_renders_the_native_image() {
     }
     let scene = scene::load("cornell-mirror").unwrap();
     let cam = scene.camera.to_pod(48, 40);
-    let pb = indicatif::ProgressBar::hidden();
+    let pb = ();
     let native = direct::render(&Tracer::new(&NATIVE, &scene, None).unwrap(), Accel::BRUTE, &cam, 2, 4, &pb).unwrap();
     let gpus = kdray::Gpu::open_all().unwrap();
     assert!(!gpus.is_empty());

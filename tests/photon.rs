@@ -29,10 +29,6 @@ fn tree(s: &Scene) -> KdTreeData {
     kdtree::try_build(&s.triangles, &BuildOptions::default()).unwrap()
 }
 
-fn hidden() -> indicatif::ProgressBar {
-    indicatif::ProgressBar::hidden()
-}
-
 /// Pearson's statistic of `counts` against expected probabilities `p` (summing to 1).
 fn chi2(counts: &[u64], p: &[f64]) -> f64 {
     let n: u64 = counts.iter().sum();
@@ -252,7 +248,7 @@ fn photon_map_irradiance_under_a_point_light_is_i_cos_over_d_squared() {
         let (photons, passes) = if rt.is_native() { (1 << 20, 8) } else { (1 << 19, 4) };
         let o = PhotonOptions { photons, passes, radius: Some(0.05), photon_direct: true, ..Default::default() };
         let mut map = PhotonMap::new(&t, Accel::BRUTE, None, s.surface_area(), o).unwrap();
-        let (img, _) = pm::render(&mut map, &cam, &hidden()).unwrap();
+        let (img, _) = pm::render(&mut map, &cam, &()).unwrap();
         let (mut sum, mut sq, mut n) = (0.0f64, 0.0f64, 0);
         for i in 0..size * size {
             let x = plane_point(&cam, i);
@@ -327,11 +323,11 @@ fn furnace_radiance_is_emission_over_one_minus_albedo() {
         let (photons, passes) = if rt.is_native() { (1 << 19, 8) } else { (1 << 18, 4) };
         let o = PhotonOptions { photons, passes, radius: Some(0.05), ..Default::default() };
         let mut map = PhotonMap::new(&t, Accel::BRUTE, None, s.surface_area(), o).unwrap();
-        let (img, _) = pm::render(&mut map, &cam, &hidden()).unwrap();
+        let (img, _) = pm::render(&mut map, &cam, &()).unwrap();
         let (mean, rms, n) = furnace_error(&img, &cam);
         eprintln!("{}: photon mapping, {n} pixels: mean {mean:.4} (want 2), rms deviation {rms:.4}", rt.name());
         assert!((mean / 2.0 - 1.0).abs() < 0.01, "{}: photon-mapped furnace mean {mean}", rt.name());
-        let img = path::render(&t, Accel::BRUTE, &cam, &PathOptions::path(3, 64, if rt.is_native() { 512 } else { 256 }), &hidden()).unwrap();
+        let img = path::render(&t, Accel::BRUTE, &cam, &PathOptions::path(3, 64, if rt.is_native() { 512 } else { 256 }), &()).unwrap();
         let (mean, rms, n) = furnace_error(&img, &cam);
         eprintln!("{}: path tracing, {n} pixels: mean {mean:.4} (want 2), rms deviation {rms:.4}", rt.name());
         assert!((mean / 2.0 - 1.0).abs() < 0.01, "{}: path-traced furnace mean {mean}", rt.name());
@@ -351,12 +347,12 @@ fn progressive_photon_mapping_converges_to_the_path_traced_reference() {
     let cam = s.camera.to_pod(size, size);
     let t = Tracer::new(&NATIVE, &s, Some(&tr)).unwrap();
     let accel = Accel::kd(Algorithm::ShortStack(3));
-    let reference = path::render(&t, accel, &cam, &PathOptions::path(11, 32, 4096), &hidden()).unwrap();
+    let reference = path::render(&t, accel, &cam, &PathOptions::path(11, 32, 4096), &()).unwrap();
     let mut errors = Vec::new();
     for passes in [1, 4, 16] {
         let o = PhotonOptions { photons: 1 << 16, passes, ..Default::default() };
         let mut map = PhotonMap::new(&t, accel, Some(&tr), s.surface_area(), o).unwrap();
-        let (img, _) = pm::render(&mut map, &cam, &hidden()).unwrap();
+        let (img, _) = pm::render(&mut map, &cam, &()).unwrap();
         errors.push(error(&img, &reference));
     }
     eprintln!("relative RMSE against the path-traced reference after 1, 4, 16 passes: {errors:?}");
@@ -410,7 +406,7 @@ fn native_and_gpu_trace_the_same_photons_and_render_the_same_image() {
             let t = Tracer::new(rt, &s, Some(&tr)).unwrap();
             let o = PhotonOptions { photons: 1 << 16, passes: 2, ..Default::default() };
             let mut map = PhotonMap::new(&t, accel, Some(&tr), s.surface_area(), o).unwrap();
-            pm::render(&mut map, &cam, &hidden()).unwrap().0
+            pm::render(&mut map, &cam, &()).unwrap().0
         };
         let e = error(&render(g), &render(&NATIVE));
         eprintln!("{spec}: GPU vs native image: relative RMSE {:.5} %", e * 100.0);

@@ -4,7 +4,7 @@
 //! list → intersect → fallback). `Accel` names one combination; `Accel::parse` reads the CLI's
 //! names and rejects combinations that do not exist.
 use crate::kernels::TraceMethod;
-use anyhow::{bail, Result};
+use crate::error::{bail, Result};
 use kdray_shared::kdtree::{Algorithm, MAX_SHORT_STACK};
 
 /// What is searched.
@@ -73,14 +73,14 @@ impl Accel {
             let a = Accel::parse(alg)?;
             return match a.with_packets() {
                 Some(p) => Ok(p),
-                None => bail!("'+packets' applies to the kd traversals (stack, restart, pushdown, shortstack[:N]), not '{alg}'"),
+                None => bail!(InvalidInput: "'+packets' applies to the kd traversals (stack, restart, pushdown, shortstack[:N]), not '{alg}'"),
             };
         }
         if let Some(rest) = s.strip_prefix("decomposed") {
             let capacity = match rest.strip_prefix(':').map(str::parse::<u32>) {
                 None if rest.is_empty() => DEFAULT_LEAF_CAPACITY,
                 Some(Ok(c)) if (1..=MAX_LEAF_CAPACITY).contains(&c) => c,
-                _ => bail!("unknown pipeline '{s}': use decomposed or decomposed:CAPACITY (1..={MAX_LEAF_CAPACITY} leaves per ray)"),
+                _ => bail!(InvalidInput: "unknown pipeline '{s}': use decomposed or decomposed:CAPACITY (1..={MAX_LEAF_CAPACITY} leaves per ray)"),
             };
             return Ok(Accel::decomposed(capacity));
         }
@@ -92,7 +92,7 @@ impl Accel {
             "shortstack" => Accel::kd(Algorithm::ShortStack(3)),
             s => match s.strip_prefix("shortstack:").map(str::parse::<u32>) {
                 Some(Ok(n)) if (1..=MAX_SHORT_STACK).contains(&n) => Accel::kd(Algorithm::ShortStack(n)),
-                _ => bail!(
+                _ => bail!(InvalidInput:
                     "unknown traversal '{s}': use brute, stack, restart, pushdown, shortstack or shortstack:N (N = 1..={MAX_SHORT_STACK}), optionally +packets, or decomposed[:CAPACITY]"
                 ),
             },

@@ -3,7 +3,7 @@
 //! decomposed pipeline must finish with its fallback. Used by the benchmarks and tests.
 use crate::accel::{Accel, Grouping, Pipeline, Structure};
 use crate::kdtree::KdTreeData;
-use anyhow::Result;
+use crate::error::Result;
 use kdray_shared::brute::BruteForce;
 use kdray_shared::kdtree::{self, KdTree, PACKET};
 use kdray_shared::query::{AnyHit, Closest, Query};

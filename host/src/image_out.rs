@@ -1,6 +1,6 @@
 //! From linear radiance to PNG, and pixel-by-pixel comparison of two renders.
 use crate::integrator::RenderOutput;
-use anyhow::{Context, Result};
+use crate::error::{err, Context, Result};
 use std::path::Path;
 
 /// Linear → sRGB-encoded 8-bit (clamped).
@@ -52,7 +52,7 @@ pub fn read_pfm(path: &Path) -> Result<(u32, u32, Vec<[f32; 3]>)> {
         fields.push(String::from_utf8_lossy(&data[start..pos]).into_owned());
     }
     pos += 1;
-    let bad = || anyhow::anyhow!("{}: not a little-endian RGB PFM file", path.display());
+    let bad = || err!(InvalidInput: "{}: not a little-endian RGB PFM file", path.display());
     if fields.len() < 4 || fields[0] != "PF" || !fields[3].starts_with('-') {
         return Err(bad());
     }

@@ -4,7 +4,7 @@
 //! caller's commands, so a schedule runs them with its other passes.
 use crate::kernels::{ChunkSums, CountKeys, ExclusiveOffsets, ScanStep, ScatterKeys};
 use crate::runtime::{Buffer, Commands, Runtime};
-use anyhow::{bail, Result};
+use crate::error::{bail, Result};
 use kdray_shared::SortParams;
 
 /// The sort's working buffers for a fixed number of cells.
@@ -21,7 +21,7 @@ pub struct CountingSort<'r> {
 impl<'r> CountingSort<'r> {
     pub fn new(rt: &'r dyn Runtime, cells: u32) -> Result<Self> {
         if cells == 0 || cells == u32::MAX {
-            bail!("a counting sort needs 1 to 2^32 - 2 cells, not {cells}");
+            bail!(TooLarge: "a counting sort needs 1 to 2^32 - 2 cells, not {cells}");
         }
         let n = cells as usize;
         let chunks = kdray_shared::sort::chunks(cells) as usize;
@@ -39,7 +39,7 @@ impl<'r> CountingSort<'r> {
     /// are the items of cell `c`. Keys ≥ `cells` are left out.
     pub fn record(&self, c: &mut Commands, keys: &Buffer<u32>, n: u32, order: &Buffer<u32>) -> Result<()> {
         if n as usize > keys.len() || n as usize > order.len() {
-            bail!("a counting sort of {n} items with {} keys and room for {}", keys.len(), order.len());
+            bail!(TooLarge: "a counting sort of {n} items with {} keys and room for {}", keys.len(), order.len());
         }
         let rt = self.rt;
         let p = SortParams { count: n, cells: self.cells, step: 0, _pad: 0 };

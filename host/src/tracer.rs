@@ -7,7 +7,7 @@ use crate::kdtree::KdTreeData;
 use crate::kernels::{Fallback, IntersectListed, QueryKind, SceneBinds, Trace, TraceMethod, TraverseLeaves};
 use crate::runtime::{cast, Buffer, Kernel, RawBuffer, Runtime};
 use crate::scene::Scene;
-use anyhow::{bail, Result};
+use crate::error::{bail, Result};
 use kdray_shared::aabb::Aabb;
 use kdray_shared::kdtree::{KdNode, LeafRef};
 use kdray_shared::query::{AnyHit, Closest};
@@ -106,7 +106,7 @@ impl<'r> Tracer<'r> {
     /// Fails unless the structure `accel` searches was built.
     pub fn check(&self, accel: Accel) -> Result<()> {
         if accel.structure == Structure::KdTree && matches!(self.structure, AccelStructure::Triangles) {
-            bail!("no kd-tree was built for this scene");
+            bail!(InvalidInput: "no kd-tree was built for this scene");
         }
         Ok(())
     }
@@ -178,18 +178,18 @@ impl<'r> Tracer<'r> {
     ) -> Result<Vec<Box<dyn Kernel + 'a>>> {
         self.check(accel)?;
         if count > rays.len() || count > out.len() || count > u32::MAX as usize {
-            bail!("a query over {count} rays with {} rays and {} results in its buffers", rays.len(), out.len());
+            bail!(InvalidInput: "a query over {count} rays with {} rays and {} results in its buffers", rays.len(), out.len());
         }
         if let (Pipeline::Decomposed { capacity }, Some(l)) = (accel.pipeline, lists) {
             if l.status.len() < count || l.lists.len() < count * capacity as usize {
-                bail!("leaf-list buffers for {} rays, a query over {count}", l.status.len());
+                bail!(InvalidInput: "leaf-list buffers for {} rays, a query over {count}", l.status.len());
             }
         }
         let params = self.params(accel, count);
         let scene = || self.scene_binds();
         Ok(match (accel.structure, accel.grouping, accel.pipeline) {
             (Structure::KdTree, _, Pipeline::Decomposed { .. }) => {
-                let Some(l) = lists else { bail!("the decomposed pipeline needs leaf-list buffers") };
+                let Some(l) = lists else { bail!(InvalidInput: "the decomposed pipeline needs leaf-list buffers") };
                 vec![
                     Box::new(TraverseLeaves { params, rays, scene: scene(), lists: &l.lists, status: &l.status }),
                     Box::new(IntersectListed::<Q> { params, rays, scene: scene(), lists: &l.lists, status: &l.status, out }),

@@ -2,7 +2,10 @@
 //! to SPIR-V. Buffer types are `#[repr(C)]` + `Pod` built from `f32`/`u32` arrays only, so the
 //! byte layout is identical on both sides (no `Vec3` in buffers).
 #![no_std]
-#![feature(core_float_math)]
+// Fused multiply-add and square root: `core::f32::math` (a nightly feature) in the shader build,
+// `libm` on the host (hardware FMA and SSE square root where the CPU has them, both correctly
+// rounded), so the crate builds on stable Rust everywhere but in the shader build.
+#![cfg_attr(target_arch = "spirv", feature(core_float_math))]
 
 pub mod aabb;
 pub mod brute;

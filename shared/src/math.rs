@@ -4,12 +4,18 @@
 
 #[inline(always)]
 pub fn fma(a: f32, b: f32, c: f32) -> f32 {
-    core::f32::math::mul_add(a, b, c)
+    #[cfg(target_arch = "spirv")]
+    return core::f32::math::mul_add(a, b, c);
+    #[cfg(not(target_arch = "spirv"))]
+    return libm::fmaf(a, b, c);
 }
 
 #[inline(always)]
 pub fn sqrt(x: f32) -> f32 {
-    core::f32::math::sqrt(x)
+    #[cfg(target_arch = "spirv")]
+    return core::f32::math::sqrt(x);
+    #[cfg(not(target_arch = "spirv"))]
+    return libm::sqrtf(x);
 }
 
 /// `a * b - c * d` with the sign of the exact result (Kahan's algorithm: error ≤ 1.5 ulp, and

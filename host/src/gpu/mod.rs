@@ -8,7 +8,7 @@
 //! and are waited for apart from submission.
 use crate::runtime::module::{find_entry, module_info, short_name, spirv_words, validate, Slot};
 use crate::runtime::{reflect, Buffer, Commands, Kernel, Mem, Pending, PendingData, RawBuffer, Runtime};
-use anyhow::{anyhow, bail, Context, Result};
+use crate::error::{bail, err, Result};
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
@@ -102,7 +102,7 @@ impl Gpu {
     pub fn new() -> Result<Gpu> {
         let list = adapters();
         if list.is_empty() {
-            bail!(NO_ADAPTER);
+            bail!(NoAdapter: "{NO_ADAPTER}");
         }
         let mut first_error = None;
         for (i, a) in list.into_iter().enumerate() {
@@ -120,10 +120,10 @@ impl Gpu {
     pub fn open(index: usize) -> Result<Gpu> {
         let list = adapters();
         if list.is_empty() {
-            bail!(NO_ADAPTER);
+            bail!(NoAdapter: "{NO_ADAPTER}");
         }
         let n = list.len();
-        let adapter = list.into_iter().nth(index).ok_or_else(|| anyhow!("no GPU adapter {index}: there are {n} (see `kdray adapters`)"))?;
+        let adapter = list.into_iter().nth(index).ok_or_else(|| err!(NoAdapter: "no GPU adapter {index}: there are {n} (see `kdray adapters`)"))?;
         Self::with_adapter(adapter, index)
     }
 
@@ -132,7 +132,7 @@ impl Gpu {
     pub fn open_all() -> Result<Vec<Gpu>> {
         let list = adapters();
         if list.is_empty() {
-            bail!(NO_ADAPTER);
+            bail!(NoAdapter: "{NO_ADAPTER}");
         }
         let mut out = Vec::new();
         for (i, a) in list.into_iter().enumerate() {
@@ -142,7 +142,7 @@ impl Gpu {
             }
         }
         if out.is_empty() {
-            bail!("no GPU adapter can run the kernels");
+            bail!(NoAdapter: "no GPU adapter can run the kernels");
         }
         Ok(out)
     }
@@ -151,7 +151,7 @@ impl Gpu {
         let info = adapter.get_info();
         let mut features = wgpu::Features::PASSTHROUGH_SHADERS | wgpu::Features::IMMEDIATES;
         if !adapter.features().contains(features) {
-            bail!("GPU adapter {} does not accept SPIR-V passthrough shaders with push constants", describe(&info));
+            bail!(NoAdapter: "GPU adapter {} does not accept SPIR-V passthrough shaders with push constants", describe(&info));
         }
         let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
         if timestamps {
@@ -161,7 +161,7 @@ impl Gpu {
         // device, not by wgpu's conservative defaults.
         let a = adapter.limits();
         if a.max_immediate_size < MAX_PARAMS {
-            bail!("GPU adapter {} offers {} bytes of push constants, the kernels need {MAX_PARAMS}", describe(&info), a.max_immediate_size);
+            bail!(NoAdapter: "GPU adapter {} offers {} bytes of push constants, the kernels need {MAX_PARAMS}", describe(&info), a.max_immediate_size);
         }
         let limits = wgpu::Limits {
             max_storage_buffer_binding_size: a.max_storage_buffer_binding_size,
@@ -177,7 +177,7 @@ impl Gpu {
             required_limits: limits.clone(),
             ..Default::default()
         }))
-        .with_context(|| format!("cannot open GPU device {}", describe(&info)))?;
+        .map_err(|e| err!(NoAdapter: "cannot open GPU device {}: {e}", describe(&info)))?;
         let m = module_info()?;
         let entry_points: Vec<wgpu::PassthroughShaderEntryPoint> = m
             .entry_points
@@ -223,7 +223,7 @@ impl Gpu {
         let info = find_entry(m, name).cloned().ok_or_else(|| {
             let stem = name.split('_').next().unwrap_or(name);
             let similar: Vec<&str> = m.entry_points.iter().map(|e| short_name(&e.name)).filter(|e| e.starts_with(stem)).collect();
-            anyhow!("the SPIR-V module has no kernel '{name}' (kernels like it: {})", similar.join(", "))
+            err!(Gpu: "the SPIR-V module has no kernel '{name}' (kernels like it: {})", similar.join(", "))
         })?;
         let entries: Vec<wgpu::BindGroupLayoutEntry> = info
             .bindings
@@ -298,17 +298,17 @@ impl Gpu {
     /// The encoder of commands recorded for this GPU.
     fn commands<'c>(&self, c: &'c mut Commands) -> Result<&'c mut wgpu::CommandEncoder> {
         if c.device != Some(self.id) {
-            bail!("commands of another runtime recorded on {}", self.info.name);
+            bail!(Gpu: "commands of another runtime recorded on {}", self.info.name);
         }
-        c.encoder.as_mut().ok_or_else(|| anyhow!("commands already submitted"))
+        c.encoder.as_mut().ok_or_else(|| err!(Gpu: "commands already submitted"))
     }
 
     /// This GPU's buffer of `buf`, or an error naming it.
     fn own<'b>(&self, buf: &'b RawBuffer) -> Result<&'b wgpu::Buffer> {
         match (buf.gpu(), buf.device()) {
             (Some(b), Some(d)) if d == self.id => Ok(b),
-            (Some(_), _) => bail!("buffer '{}' belongs to another GPU", buf.label()),
-            _ => bail!("buffer '{}' is host memory, not this GPU's", buf.label()),
+            (Some(_), _) => bail!(Gpu: "buffer '{}' belongs to another GPU", buf.label()),
+            _ => bail!(Gpu: "buffer '{}' is host memory, not this GPU's", buf.label()),
         }
     }
 
@@ -328,7 +328,7 @@ impl Gpu {
         let name = k.entry();
         for h in &host {
             if h.buffer.device() != Some(self.id) {
-                bail!("kernel {name}: buffer '{}' belongs to {}, not to this GPU", h.buffer.label(), if h.buffer.device().is_some() { "another GPU" } else { "the native runtime" });
+                bail!(Gpu: "kernel {name}: buffer '{}' belongs to {}, not to this GPU", h.buffer.label(), if h.buffer.device().is_some() { "another GPU" } else { "the native runtime" });
             }
         }
         let params = if order.contains(&Slot::Params) { Some(self.params_buffer(k.params())?) } else { None };
@@ -349,8 +349,8 @@ impl Gpu {
         let mut buffers = Vec::with_capacity(order.len());
         for s in &order {
             buffers.push(match s {
-                Slot::Host(i) => host[*i].buffer.gpu().ok_or_else(|| anyhow!("kernel {name}: buffer '{}' is host memory, not this GPU's", host[*i].buffer.label()))?,
-                Slot::Params => &params.as_ref().ok_or_else(|| anyhow!("kernel {name}: parameter buffer missing"))?.1,
+                Slot::Host(i) => host[*i].buffer.gpu().ok_or_else(|| err!(Gpu: "kernel {name}: buffer '{}' is host memory, not this GPU's", host[*i].buffer.label()))?,
+                Slot::Params => &params.as_ref().ok_or_else(|| err!(Gpu: "kernel {name}: parameter buffer missing"))?.1,
             });
         }
         let entries: Vec<wgpu::BindGroupEntry> = p
@@ -409,7 +409,7 @@ impl Gpu {
         let gx = groups.min(max);
         let gy = if gx == 0 { 0 } else { groups.div_ceil(gx) };
         if gy > max {
-            bail!("dispatch of {threads} threads exceeds the device's workgroup grid");
+            bail!(Gpu: "dispatch of {threads} threads exceeds the device's workgroup grid");
         }
         Ok((gx, gy))
     }
@@ -427,7 +427,7 @@ impl Gpu {
     fn poll(&self, idx: Option<wgpu::SubmissionIndex>) -> Result<()> {
         self.device
             .poll(wgpu::PollType::Wait { submission_index: idx, timeout: Some(SUBMIT_TIMEOUT) })
-            .map_err(|e| anyhow!("GPU did not finish: {e}"))?;
+            .map_err(|e| err!(DeviceLost: "the GPU did not finish: {e}"))?;
         Ok(())
     }
 
@@ -548,7 +548,7 @@ impl Gpu {
         }
         let idx = r.submission.lock().expect("read-back").clone();
         if idx.is_none() {
-            bail!("a read-back was waited for before its commands were submitted");
+            bail!(Gpu: "a read-back was waited for before its commands were submitted");
         }
         let slice = r.staging.slice(..r.bytes);
         let (tx, rx) = std::sync::mpsc::channel();
@@ -557,9 +557,9 @@ impl Gpu {
         });
         self.poll(idx)?;
         rx.recv_timeout(SUBMIT_TIMEOUT)
-            .map_err(|_| anyhow!("GPU read-back did not complete"))?
-            .map_err(|e| anyhow!("cannot read GPU buffer: {e}"))?;
-        let view = slice.get_mapped_range().map_err(|e| anyhow!("cannot map GPU buffer: {e:?}"))?;
+            .map_err(|_| err!(DeviceLost: "a GPU read-back did not complete"))?
+            .map_err(|e| err!(Gpu: "cannot read GPU buffer: {e}"))?;
+        let view = slice.get_mapped_range().map_err(|e| err!(Gpu: "cannot map GPU buffer: {e:?}"))?;
         let out: Vec<u32> = bytemuck::pod_collect_to_vec(&view);
         drop(view);
         r.staging.unmap();
@@ -597,7 +597,7 @@ impl Runtime for Gpu {
     fn write_raw(&self, buf: &RawBuffer, data: &[u8]) -> Result<()> {
         let b = self.own(buf)?;
         if data.len() as u64 > buf.bytes() {
-            bail!("{}: {} bytes written into a buffer of {}", buf.label(), data.len(), buf.bytes());
+            bail!(Gpu: "{}: {} bytes written into a buffer of {}", buf.label(), data.len(), buf.bytes());
         }
         if data.len() % 4 != 0 {
             let mut padded = data.to_vec();
@@ -627,7 +627,7 @@ impl Runtime for Gpu {
     fn dispatch_indirect(&self, c: &mut Commands, k: &dyn Kernel, args: &Buffer<[u32; 3]>, index: usize) -> Result<()> {
         let b = self.own(args.raw())?;
         if index >= args.len() {
-            bail!("{}: indirect arguments {index} of {}", k.entry(), args.len());
+            bail!(Gpu: "{}: indirect arguments {index} of {}", k.entry(), args.len());
         }
         let enc = self.commands(c)?;
         self.record(enc, k, Some((b, 12 * index as u64)), None)
@@ -647,7 +647,7 @@ impl Runtime for Gpu {
 
     fn submit(&self, mut c: Commands) -> Result<()> {
         self.commands(&mut c)?;
-        let enc = c.encoder.take().ok_or_else(|| anyhow!("commands of another runtime"))?;
+        let enc = c.encoder.take().ok_or_else(|| err!(Gpu: "commands of another runtime"))?;
         let idx = self.queue.submit([enc.finish()]);
         for r in &c.readbacks {
             *r.submission.lock().expect("read-back") = Some(idx.clone());
@@ -658,10 +658,10 @@ impl Runtime for Gpu {
     fn wait(&self, p: Pending) -> Result<Vec<u32>> {
         let r = match p.data {
             PendingData::Gpu(r) => r,
-            PendingData::Ready(_) => bail!("a read-back of the native runtime waited for on a GPU"),
+            PendingData::Ready(_) => bail!(Gpu: "a read-back of the native runtime waited for on a GPU"),
         };
         if r.device != self.id {
-            bail!("a read-back of another GPU waited for on this one");
+            bail!(Gpu: "a read-back of another GPU waited for on this one");
         }
         let mut out = self.map(&r)?;
         out.truncate(p.bytes as usize / 4);

@@ -8,6 +8,19 @@ pub mod photon;
 
 use kdray_shared::Hit;
 
+/// What a long render reports as it goes. The command line draws a progress bar from it;
+/// `&()` reports nothing.
+pub trait Progress {
+    /// The amount of work, in the integrator's units (path samples, photon passes).
+    fn start(&self, _total: u64) {}
+    /// `n` more units done.
+    fn advance(&self, _n: u64) {}
+    /// A short status line, e.g. `"12.3 M photons/s"`.
+    fn status(&self, _text: &str) {}
+}
+
+impl Progress for () {}
+
 /// Result of a render: per-pixel primary hit and linear RGB radiance (row-major, top row first).
 #[derive(Clone, Debug)]
 pub struct RenderOutput {

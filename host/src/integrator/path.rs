@@ -8,13 +8,12 @@
 //! instead). Only what the scene needs runs: no bounces without specular surfaces or diffuse
 //! bounces, no shadow queries without lights. Batches alternate between two sets of buffers,
 //! so the GPU renders one while the host reads the last.
-use super::RenderOutput;
+use super::{Progress, RenderOutput};
 use crate::accel::Accel;
 use crate::kernels::{Accumulate, CameraRays, Film, PathStep, TracePaths};
 use crate::runtime::{cast, Buffer, Kernel};
 use crate::tracer::{LeafLists, Tracer};
-use anyhow::{bail, Result};
-use indicatif::ProgressBar;
+use crate::error::{bail, Result};
 use kdray_shared::query::{AnyHit, Closest};
 use kdray_shared::rng::pcg_hash;
 use kdray_shared::{camera, Camera, Hit, PathState, Ray, RenderParams, ShadeTerms, RENDER_JITTER};
@@ -183,10 +182,10 @@ const DISPATCHES_PER_SUBMIT: usize = 2048;
 
 /// Renders `cam`'s image: `o.spp` samples per pixel, as many per dispatch as the batch size
 /// allows (fewer, larger dispatches).
-pub fn render(t: &Tracer, accel: Accel, cam: &Camera, o: &PathOptions, progress: &ProgressBar) -> Result<RenderOutput> {
+pub fn render(t: &Tracer, accel: Accel, cam: &Camera, o: &PathOptions, progress: &dyn Progress) -> Result<RenderOutput> {
     t.check(accel)?;
     if o.spp == 0 {
-        bail!("at least one sample per pixel is needed");
+        bail!(InvalidInput: "at least one sample per pixel is needed");
     }
     let rt = t.rt;
     let n = (cam.width * cam.height) as usize;
@@ -196,7 +195,7 @@ pub fn render(t: &Tracer, accel: Accel, cam: &Camera, o: &PathOptions, progress:
     let sets = if n > b { 2 } else { 1 };
     let fbs: Vec<FrameBuffers> = (0..sets).map(|_| FrameBuffers::new(t, accel, b * per_dispatch as usize)).collect::<Result<_>>()?;
     let mut out = RenderOutput::new(cam.width, cam.height);
-    progress.set_length(n as u64 * o.spp as u64);
+    progress.start(n as u64 * o.spp as u64);
     let mut pending = None;
     let mut first = 0;
     let mut batch = 0;
@@ -213,7 +212,7 @@ pub fn render(t: &Tracer, accel: Accel, cam: &Camera, o: &PathOptions, progress:
                 recorded += 1;
             }
             rt.dispatch(&mut c, &Film { params: p, paths: &fb.paths, radiance: &fb.radiance })?;
-            progress.inc((count * s as usize) as u64);
+            progress.advance((count * s as usize) as u64);
             if recorded >= DISPATCHES_PER_SUBMIT && g + 1 < groups {
                 rt.submit(std::mem::replace(&mut c, rt.begin()))?;
                 recorded = 0;

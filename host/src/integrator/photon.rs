@@ -16,15 +16,14 @@
 //! record buffer is sized from the first pass and grows (the pass is traced again: passes are
 //! deterministic) should a later pass store more.
 use super::path::{self, FrameBuffers, PathOptions};
-use super::RenderOutput;
+use super::{Progress, RenderOutput};
 use crate::accel::Accel;
 use crate::kdtree::KdTreeData;
 use crate::kernels::{EmitPhotons, Film, Gather, IndexBinds, PermutePhotons, PhotonBounce, PhotonKeys, TracePhotons};
 use crate::runtime::{cast, Buffer, Kernel, Runtime};
 use crate::sort::CountingSort;
 use crate::tracer::{LeafLists, Tracer};
-use anyhow::{bail, Result};
-use indicatif::ProgressBar;
+use crate::error::{bail, err, Result};
 use kdray_shared::kdtree::KdNode;
 use kdray_shared::query::Closest;
 use kdray_shared::rng::pcg_hash;
@@ -197,14 +196,14 @@ impl<'t> PhotonMap<'t> {
     pub fn new(t: &'t Tracer<'t>, accel: Accel, tree: Option<&KdTreeData>, scene_area: f64, o: PhotonOptions) -> Result<Self> {
         t.check(accel)?;
         if o.photons == 0 || o.eye_samples == 0 || o.passes == 0 {
-            bail!("photon mapping needs at least one photon, pass and eye sample per pass");
+            bail!(InvalidInput: "photon mapping needs at least one photon, pass and eye sample per pass");
         }
         if !(o.alpha > 0.0 && o.alpha <= 1.0) {
-            bail!("the radius reduction alpha must be in (0, 1], got {}", o.alpha);
+            bail!(InvalidInput: "the radius reduction alpha must be in (0, 1], got {}", o.alpha);
         }
         if let Some(r) = o.radius {
             if !(r.is_finite() && r > 0.0) {
-                bail!("--radius must be a positive number, got {r}");
+                bail!(InvalidInput: "--radius must be a positive number, got {r}");
             }
         }
         let rt = t.rt;
@@ -220,12 +219,12 @@ impl<'t> PhotonMap<'t> {
         let kd = match o.index {
             IndexKind::Grid => None,
             IndexKind::Kd => {
-                let tree = tree.ok_or_else(|| anyhow::anyhow!("the kd photon index needs the scene's kd-tree (a kd traversal)"))?;
+                let tree = tree.ok_or_else(|| err!(InvalidInput: "the kd photon index needs the scene's kd-tree (a kd traversal)"))?;
                 Some((leaf_boxes(&tree.nodes, tree.bounds.min, tree.bounds.max), rt.alloc("kd leaf cells", tree.nodes.len())?))
             }
         };
         let cells = Self::cells_for(o.index, capacity);
-        let sort = CountingSort::new(rt, cells.checked_mul(maps).ok_or_else(|| anyhow::anyhow!("too many photon cells"))?)?;
+        let sort = CountingSort::new(rt, cells.checked_mul(maps).ok_or_else(|| err!(TooLarge: "too many photon cells"))?)?;
         Ok(PhotonMap {
             t,
             accel,
@@ -460,7 +459,7 @@ impl<'t> PhotonMap<'t> {
         let t = self.t;
         let rt = t.rt;
         if self.rays.len() < self.batch {
-            bail!("counting photon bounces needs the per-bounce schedule (PhotonOptions::fused off)");
+            bail!(InvalidInput: "counting photon bounces needs the per-bounce schedule (PhotonOptions::fused off)");
         }
         let (mut rays, mut hits) = (0u64, 0u64);
         rt.finish()?;
@@ -520,7 +519,7 @@ pub fn eye_params(t: &Tracer, cam: &Camera, o: &PhotonOptions, first: usize, cou
 }
 
 /// Renders `cam`'s image by progressive photon mapping; `progress` counts passes.
-pub fn render(map: &mut PhotonMap, cam: &Camera, progress: &ProgressBar) -> Result<(RenderOutput, PhotonStats)> {
+pub fn render(map: &mut PhotonMap, cam: &Camera, progress: &dyn Progress) -> Result<(RenderOutput, PhotonStats)> {
     let t = map.t;
     let rt = t.rt;
     let accel = map.accel;
@@ -529,7 +528,7 @@ pub fn render(map: &mut PhotonMap, cam: &Camera, progress: &ProgressBar) -> Resu
     let b = (t.batch_size(accel, n * e) / e).max(1);
     let batches: Vec<(usize, usize)> = (0..n).step_by(b).map(|f| (f, b.min(n - f))).collect();
     let fbs: Vec<FrameBuffers> = batches.iter().map(|&(_, c)| FrameBuffers::new(t, accel, c * e)).collect::<Result<_>>()?;
-    progress.set_length(map.o.passes as u64);
+    progress.start(map.o.passes as u64);
     let start = Instant::now();
     let mut stats = PhotonStats::default();
     for pass in 0..map.o.passes {
@@ -548,9 +547,9 @@ pub fn render(map: &mut PhotonMap, cam: &Camera, progress: &ProgressBar) -> Resu
         stats.emitted += map.o.photons as u64;
         stats.stored += stored as u64;
         stats.last_radius = pass_radius(map.r0, map.o.alpha, pass);
-        progress.inc(1);
+        progress.advance(1);
         let secs = start.elapsed().as_secs_f64();
-        progress.set_message(format!("{:.1} M photons/s", stats.emitted as f64 / secs / 1e6));
+        progress.status(&format!("{:.1} M photons/s", stats.emitted as f64 / secs / 1e6));
         if map.o.time_limit.is_some_and(|l| secs >= l) {
             break;
         }

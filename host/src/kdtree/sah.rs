@@ -15,7 +15,7 @@
 //! (`MIN_GAP`), so no cell is a rounding error thin: no traversal needs zero-length cells and
 //! each returns the oracle's hits.
 use super::clip::{clipped_bounds, tri_bounds, Bounds};
-use anyhow::{bail, Result};
+use crate::error::{bail, Result};
 use kdray_shared::aabb::Aabb;
 use kdray_shared::kdtree::{KdNode, KdTree, MAX_DEPTH};
 use kdray_shared::Triangle;
@@ -380,7 +380,7 @@ fn limit_str(v: u64) -> String {
 
 fn check_triangles(triangles: u64, lim: &Limits) -> Result<()> {
     if triangles > lim.triangles {
-        bail!(
+        bail!(TooLarge:
             "scene too large for the kd-tree: {triangles} triangles exceed the {} that u32 triangle ids address",
             limit_str(lim.triangles)
         );
@@ -390,21 +390,21 @@ fn check_triangles(triangles: u64, lim: &Limits) -> Result<()> {
 
 fn check_counts(c: &TreeCounts, lim: &Limits) -> Result<()> {
     if c.nodes > lim.nodes {
-        bail!(
+        bail!(TooLarge:
             "scene too large for the kd-tree: {} nodes exceed the {} the 8-byte node format addresses",
             c.nodes,
             limit_str(lim.nodes)
         );
     }
     if c.largest_leaf > lim.leaf_prims {
-        bail!(
+        bail!(TooLarge:
             "scene too large for the kd-tree: a leaf of {} triangles exceeds the {} the 8-byte node format counts",
             c.largest_leaf,
             limit_str(lim.leaf_prims)
         );
     }
     if c.prim_refs > lim.prim_refs {
-        bail!(
+        bail!(TooLarge:
             "scene too large for the kd-tree: {} triangle references in leaves exceed the {} that u32 leaf offsets address",
             c.prim_refs,
             limit_str(lim.prim_refs)

@@ -2,7 +2,7 @@
 //! entry point calls) for every item, over all cores with rayon. Commands run as they are
 //! recorded, so submitting and waiting cost nothing.
 use super::{Access, Buffer, Commands, Kernel, Mem, Pending, PendingData, RawBuffer, Runtime};
-use anyhow::{bail, Result};
+use crate::error::{bail, Result};
 use rayon::prelude::*;
 use std::cell::UnsafeCell;
 
@@ -18,7 +18,7 @@ impl Cpu {
     fn words(buf: &RawBuffer) -> Result<(*mut u8, usize)> {
         match buf.host_ptr() {
             Some(p) => Ok((p, buf.bytes() as usize)),
-            None => bail!("buffer '{}' belongs to a GPU, not to the native runtime", buf.label()),
+            None => bail!(InvalidInput: "buffer '{}' belongs to a GPU, not to the native runtime", buf.label()),
         }
     }
 
@@ -85,7 +85,7 @@ impl Runtime for Cpu {
         let words = bytes.div_ceil(4) as usize;
         let mut v: Vec<UnsafeCell<u32>> = Vec::new();
         if v.try_reserve_exact(words).is_err() {
-            bail!("out of memory: the {label} buffer needs {:.1} MiB", bytes as f64 / 1048576.0);
+            bail!(TooLarge: "out of memory: the {label} buffer needs {:.1} MiB", bytes as f64 / 1048576.0);
         }
         v.resize_with(words, || UnsafeCell::new(0));
         Ok(RawBuffer::new(label, bytes, Mem::Cpu(v.into_boxed_slice())))
@@ -94,7 +94,7 @@ impl Runtime for Cpu {
     fn write_raw(&self, buf: &RawBuffer, data: &[u8]) -> Result<()> {
         let (p, n) = Self::words(buf)?;
         if data.len() > n {
-            bail!("{}: {} bytes written into a buffer of {}", buf.label(), data.len(), n);
+            bail!(InvalidInput: "{}: {} bytes written into a buffer of {}", buf.label(), data.len(), n);
         }
         // SAFETY: in bounds; the exclusive borrow keeps every other access out.
         Self::holding_one(buf, true, || unsafe { std::ptr::copy_nonoverlapping(data.as_ptr(), p, data.len()) })
@@ -112,7 +112,7 @@ impl Runtime for Cpu {
 
     fn dispatch(&self, c: &mut Commands, k: &dyn Kernel) -> Result<()> {
         if c.device.is_some() {
-            bail!("commands of a GPU recorded on the native runtime");
+            bail!(InvalidInput: "commands of a GPU recorded on the native runtime");
         }
         Self::check(k)?;
         Self::holding(k, || {
@@ -123,21 +123,21 @@ impl Runtime for Cpu {
 
     fn dispatch_indirect(&self, c: &mut Commands, k: &dyn Kernel, args: &Buffer<[u32; 3]>, index: usize) -> Result<()> {
         if c.device.is_some() {
-            bail!("commands of a GPU recorded on the native runtime");
+            bail!(InvalidInput: "commands of a GPU recorded on the native runtime");
         }
         Self::check(k)?;
         let (p, n) = Self::words(args.raw())?;
         if (index + 1) * 12 > n {
-            bail!("{}: indirect arguments {index} of {}", k.entry(), args.len());
+            bail!(InvalidInput: "{}: indirect arguments {index} of {}", k.entry(), args.len());
         }
         // SAFETY: in bounds, 4-byte aligned words, read under a shared borrow.
         let g = Self::holding_one(args.raw(), false, || unsafe { *(p as *const [u32; 3]).add(index) })?;
         if g[2] != 1 || g[0] > u16::MAX as u32 || g[1] > u16::MAX as u32 {
-            bail!("{}: indirect workgroup counts {g:?}: z must be 1 and x, y at most 65535", k.entry());
+            bail!(InvalidInput: "{}: indirect workgroup counts {g:?}: z must be 1 and x, y at most 65535", k.entry());
         }
         let threads = g[0] as u64 * g[1] as u64 * k.workgroup() as u64;
         if threads > u32::MAX as u64 {
-            bail!("{}: indirect dispatch of {threads} threads", k.entry());
+            bail!(InvalidInput: "{}: indirect dispatch of {threads} threads", k.entry());
         }
         Self::holding(k, || {
             Self::run_threads(k, threads as u32);
@@ -160,7 +160,7 @@ impl Runtime for Cpu {
     fn wait(&self, p: Pending) -> Result<Vec<u32>> {
         match p.data {
             PendingData::Ready(v) => Ok(v),
-            PendingData::Gpu(_) => bail!("a GPU read-back waited for on the native runtime"),
+            PendingData::Gpu(_) => bail!(InvalidInput: "a GPU read-back waited for on the native runtime"),
         }
     }
 

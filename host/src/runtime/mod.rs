@@ -12,7 +12,7 @@ pub mod cpu;
 pub mod module;
 pub mod reflect;
 
-use anyhow::{bail, Result};
+use crate::error::{bail, Result};
 use bytemuck::Pod;
 use std::borrow::Cow;
 use std::cell::UnsafeCell;
@@ -76,7 +76,7 @@ impl RawBuffer {
             }
         };
         if !ok {
-            bail!("buffer '{}' is in use by another operation of the native runtime", self.label);
+            bail!(InvalidInput: "buffer '{}' is in use by another operation of the native runtime", self.label);
         }
         Ok(())
     }
@@ -333,10 +333,10 @@ impl dyn Runtime + '_ {
     /// a clear message when it exceeds the device's binding limit.
     pub fn alloc<T: Pod>(&self, label: &str, n: usize) -> Result<Buffer<T>> {
         if std::mem::align_of::<T>() > 4 {
-            bail!("{label}: element type aligned to more than 4 bytes");
+            bail!(InvalidInput: "{label}: element type aligned to more than 4 bytes");
         }
         let Some(bytes) = n.max(1).checked_mul(std::mem::size_of::<T>()) else {
-            bail!("{label}: {n} elements do not fit in memory");
+            bail!(TooLarge: "{label}: {n} elements do not fit in memory");
         };
         let bytes = bytes.max(4) as u64;
         self.check_size(label, bytes)?;
@@ -355,7 +355,7 @@ impl dyn Runtime + '_ {
     /// Copies `data` into the start of `buf`.
     pub fn write<T: Pod>(&self, buf: &Buffer<T>, data: &[T]) -> Result<()> {
         if data.len() > buf.len().max(1) {
-            bail!("{}: {} elements written into a buffer of {}", buf.raw().label(), data.len(), buf.len());
+            bail!(InvalidInput: "{}: {} elements written into a buffer of {}", buf.raw().label(), data.len(), buf.len());
         }
         self.write_raw(buf.raw(), bytemuck::cast_slice(data))
     }
@@ -387,7 +387,7 @@ impl dyn Runtime + '_ {
         let max = self.max_binding();
         if bytes > max {
             let what = if self.is_native() { "machine" } else { "GPU" };
-            bail!(
+            bail!(TooLarge:
                 "scene too large for this {what}: the {label} buffer needs {:.1} MiB but {} allows at most {:.1} MiB per storage buffer",
                 bytes as f64 / 1048576.0,
                 self.name(),

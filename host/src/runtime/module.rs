@@ -4,9 +4,9 @@
 //! against it (`validate`): a host declaration that does not match its shader is an error
 //! naming the kernel and the binding, never a wrong binding.
 use super::{reflect, Access, Bind, Kernel};
-use anyhow::{anyhow, bail, Result};
+use crate::error::{bail, err, Result};
 
-static SPIRV: &[u8] = include_bytes!(env!("kdray_shader.spv"));
+static SPIRV: &[u8] = include_bytes!("../../kernels/kdray.spv");
 
 /// The words of the SPIR-V module built from `shader-crate/`, without its source-line
 /// instructions (`OpLine`, `OpNoLine`: debug information only; the build keeps variable names,
@@ -40,7 +40,7 @@ pub fn module_info() -> Result<&'static reflect::Module> {
     static M: std::sync::OnceLock<Result<reflect::Module, String>> = std::sync::OnceLock::new();
     M.get_or_init(|| reflect::parse(&spirv_words()).map_err(|e| format!("{e:#}")))
         .as_ref()
-        .map_err(|e| anyhow!("the built-in SPIR-V module cannot be read: {e}"))
+        .map_err(|e| err!(Gpu: "the built-in SPIR-V module cannot be read: {e}"))
 }
 
 /// The entry point a kernel names: `family::name` in the module (rust-gpu qualifies entry
@@ -86,7 +86,7 @@ pub fn validate(k: &dyn Kernel, host: &[Bind], info: &reflect::EntryPoint) -> Re
     check_aliasing(k, host)?;
     for b in &info.bindings {
         if b.name.is_none() || b.set != 0 || b.kind != reflect::BindingKind::StorageBuffer {
-            bail!("kernel {name}: binding {} (set {}) must be a named storage buffer in set 0 (the module was not built by host/build.rs?)", b.binding, b.set);
+            bail!(Gpu: "kernel {name}: binding {} (set {}) must be a named storage buffer in set 0 (the module was not built by host/build.rs?)", b.binding, b.set);
         }
     }
     let params = k.params().len() as u32;
@@ -96,31 +96,31 @@ pub fn validate(k: &dyn Kernel, host: &[Bind], info: &reflect::EntryPoint) -> Re
         None => info.push_constant_size,
     };
     if params != declared {
-        bail!("kernel {name}: the host passes {params} bytes of parameters, the shader declares {declared}");
+        bail!(Gpu: "kernel {name}: the host passes {params} bytes of parameters, the shader declares {declared}");
     }
     if k.workgroup() != info.workgroup_size[0] || info.workgroup_size[1] != 1 || info.workgroup_size[2] != 1 {
-        bail!("kernel {name}: the host dispatches workgroups of {}, the shader declares {:?}", k.workgroup(), info.workgroup_size);
+        bail!(Gpu: "kernel {name}: the host dispatches workgroups of {}, the shader declares {:?}", k.workgroup(), info.workgroup_size);
     }
     let mut order = Vec::with_capacity(info.bindings.len());
     for b in &info.bindings {
         let bn = b.name.as_deref().unwrap_or_default();
         if params_binding.is_some_and(|p| p.binding == b.binding) {
             if !b.read_only {
-                bail!("kernel {name}: its parameter buffer must be read-only");
+                bail!(Gpu: "kernel {name}: its parameter buffer must be read-only");
             }
             order.push(Slot::Params);
             continue;
         }
-        let i = host.iter().position(|h| h.name == bn).ok_or_else(|| anyhow!("kernel {name}: binding '{bn}' ({}) is not supplied by the host", b.binding))?;
+        let i = host.iter().position(|h| h.name == bn).ok_or_else(|| err!(Gpu: "kernel {name}: binding '{bn}' ({}) is not supplied by the host", b.binding))?;
         let h = &host[i];
         if let Some(e) = b.element_size {
             if e != h.elem {
-                bail!("kernel {name}: binding '{}' holds elements of {e} bytes in the shader, {} on the host", h.name, h.elem);
+                bail!(Gpu: "kernel {name}: binding '{}' holds elements of {e} bytes in the shader, {} on the host", h.name, h.elem);
             }
         }
         match (h.access, b.read_only) {
-            (Access::Read, false) => bail!("kernel {name}: binding '{}' is written by the shader but bound for reading", h.name),
-            (Access::Write, true) => bail!("kernel {name}: binding '{}' is read-only in the shader but bound for writing", h.name),
+            (Access::Read, false) => bail!(Gpu: "kernel {name}: binding '{}' is written by the shader but bound for reading", h.name),
+            (Access::Write, true) => bail!(Gpu: "kernel {name}: binding '{}' is read-only in the shader but bound for writing", h.name),
             _ => {}
         }
         order.push(Slot::Host(i));
@@ -129,7 +129,7 @@ pub fn validate(k: &dyn Kernel, host: &[Bind], info: &reflect::EntryPoint) -> Re
     // drops unused parameters, e.g. the kd-tree arrays of the brute-force kernels): allowed for
     // reading, an error for writing (the host would expect results that never come).
     if let Some(extra) = host.iter().find(|h| h.access == Access::Write && !info.bindings.iter().any(|b| b.name.as_deref() == Some(h.name))) {
-        bail!("kernel {name}: the host binds '{}' for writing but the shader has no such binding", extra.name);
+        bail!(Gpu: "kernel {name}: the host binds '{}' for writing but the shader has no such binding", extra.name);
     }
     Ok(order)
 }
@@ -139,10 +139,10 @@ pub fn check_aliasing(k: &dyn Kernel, host: &[Bind]) -> Result<()> {
     for (i, x) in host.iter().enumerate() {
         for y in &host[i + 1..] {
             if x.name == y.name {
-                bail!("kernel {}: binding '{}' is given twice", k.entry(), x.name);
+                bail!(Gpu: "kernel {}: binding '{}' is given twice", k.entry(), x.name);
             }
             if x.buffer.id() == y.buffer.id() && (x.access == Access::Write || y.access == Access::Write) {
-                bail!("kernel {}: buffer '{}' is bound as both '{}' and '{}' and written", k.entry(), x.buffer.label(), x.name, y.name);
+                bail!(Gpu: "kernel {}: buffer '{}' is bound as both '{}' and '{}' and written", k.entry(), x.buffer.label(), x.name, y.name);
             }
         }
     }

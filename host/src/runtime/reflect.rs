@@ -11,7 +11,7 @@
 //! interface count). For an older module (header version < 1.4) every variable of the
 //! StorageBuffer, Uniform or PushConstant class is attributed to every entry point.
 //! Malformed input is an error, never a panic or an endless loop.
-use anyhow::{anyhow, bail, ensure, Context, Result};
+use crate::error::{bail, ensure, err, Context, Result};
 use std::collections::{BTreeMap, HashMap, HashSet};
 
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -108,21 +108,21 @@ fn string(words: &[u32]) -> Result<(String, usize)> {
     for (i, w) in words.iter().enumerate() {
         for b in w.to_le_bytes() {
             if b == 0 {
-                let s = String::from_utf8(bytes).context("malformed SPIR-V: literal string is not UTF-8")?;
+                let s = String::from_utf8(bytes).map_err(|_| err!(Gpu: "malformed SPIR-V: literal string is not UTF-8"))?;
                 return Ok((s, i + 1));
             }
             bytes.push(b);
         }
     }
-    bail!("malformed SPIR-V: literal string without a nul terminator")
+    bail!(Gpu: "malformed SPIR-V: literal string without a nul terminator")
 }
 
 pub fn parse(words: &[u32]) -> Result<Module> {
-    ensure!(words.len() >= 5, "not a SPIR-V module: {} words, the header alone is 5", words.len());
+    ensure!(words.len() >= 5, Gpu: "not a SPIR-V module: {} words, the header alone is 5", words.len());
     match words[0] {
         MAGIC => {}
-        m if m.swap_bytes() == MAGIC => bail!("byte-swapped SPIR-V (magic {m:#010x}): words must be in host order"),
-        m => bail!("not a SPIR-V module: magic {m:#010x}, expected {MAGIC:#010x}"),
+        m if m.swap_bytes() == MAGIC => bail!(Gpu: "byte-swapped SPIR-V (magic {m:#010x}): words must be in host order"),
+        m => bail!(Gpu: "not a SPIR-V module: magic {m:#010x}, expected {MAGIC:#010x}"),
     }
     let modern = words[1] >= 0x0001_0400;
     let mut r = Raw::default();
@@ -131,12 +131,12 @@ pub fn parse(words: &[u32]) -> Result<Module> {
     let mut at = 5;
     while at < words.len() {
         let (count, op) = ((words[at] >> 16) as usize, words[at] & 0xffff);
-        ensure!(count != 0, "malformed SPIR-V: zero word count (opcode {op}) at word {at}");
+        ensure!(count != 0, Gpu: "malformed SPIR-V: zero word count (opcode {op}) at word {at}");
         let ops = words.get(at + 1..at + count).ok_or_else(|| {
-            anyhow!("malformed SPIR-V: instruction (opcode {op}) at word {at} runs past the end of the module")
+            err!(Gpu: "malformed SPIR-V: instruction (opcode {op}) at word {at} runs past the end of the module")
         })?;
         let w = |i: usize| {
-            ops.get(i).copied().ok_or_else(|| anyhow!("malformed SPIR-V: opcode {op} at word {at} has too few operands"))
+            ops.get(i).copied().ok_or_else(|| err!(Gpu: "malformed SPIR-V: opcode {op} at word {at} has too few operands"))
         };
         match op {
             5 => drop(r.names.insert(w(0)?, string(&ops[1..])?.0)),
@@ -173,10 +173,10 @@ pub fn parse(words: &[u32]) -> Result<Module> {
                 let c = |id: u32| r.consts.get(&id).copied();
                 match (c(ids[0]), c(ids[1]), c(ids[2])) {
                     (Some(x), Some(y), Some(z)) => [x, y, z],
-                    _ => bail!("entry point `{name}`: LocalSizeId operands are not plain OpConstants"),
+                    _ => bail!(Gpu: "entry point `{name}`: LocalSizeId operands are not plain OpConstants"),
                 }
             }
-            None => bail!("entry point `{name}` has no LocalSize execution mode"),
+            None => bail!(Gpu: "entry point `{name}` has no LocalSize execution mode"),
         };
         let vars: Vec<u32> = if modern {
             let mut seen = HashSet::new();
@@ -193,7 +193,7 @@ pub fn parse(words: &[u32]) -> Result<Module> {
                 None => format!("entry point `{name}`, variable %{var}"),
             };
             let Some(Ty::Pointer(pointee)) = r.types.get(&ptr) else {
-                bail!("{}: type %{ptr} is not a pointer", what());
+                bail!(Gpu: "{}: type %{ptr} is not a pointer", what());
             };
             if class == SC_PUSH_CONSTANT {
                 let size = r.size(*pointee, 0).with_context(|| format!("{}: push-constant block", what()))?;
@@ -201,7 +201,7 @@ pub fn parse(words: &[u32]) -> Result<Module> {
             } else if let Some(binding) = r.decos.get(&(var, NONE, D_BINDING)) {
                 bindings.push(r.binding(var, class, *pointee, *binding).with_context(what)?);
             } else if class == SC_STORAGE_BUFFER || class == SC_UNIFORM {
-                bail!("{}: buffer without a Binding decoration", what());
+                bail!(Gpu: "{}: buffer without a Binding decoration", what());
             }
         }
         bindings.sort_by_key(|b| (b.set, b.binding));
@@ -266,12 +266,12 @@ impl Raw {
 
     /// Byte size of a type; a runtime array counts as 0, a struct ends at its furthest member.
     fn size(&self, ty: u32, depth: u32) -> Result<u32> {
-        ensure!(depth < 64, "type %{ty} is nested too deeply (cyclic?)");
+        ensure!(depth < 64, Gpu: "type %{ty} is nested too deeply (cyclic?)");
         let n = match self.types.get(&ty) {
             Some(Ty::Scalar(b)) => Some(*b),
             Some(Ty::Repeat(c, n)) => self.size(*c, depth + 1)?.checked_mul(*n),
             Some(Ty::Array(e, len)) => {
-                let Some(len) = self.consts.get(len) else { bail!("array length %{len} is not an OpConstant") };
+                let Some(len) = self.consts.get(len) else { bail!(Gpu: "array length %{len} is not an OpConstant") };
                 self.stride(ty, *e, depth)?.checked_mul(*len)
             }
             Some(Ty::RuntimeArray(_)) => Some(0),
@@ -284,9 +284,9 @@ impl Raw {
                 }
                 end
             }
-            _ => bail!("type %{ty} has no known size"),
+            _ => bail!(Gpu: "type %{ty} has no known size"),
         };
-        n.ok_or_else(|| anyhow!("size of type %{ty} overflows u32"))
+        n.ok_or_else(|| err!(Gpu: "size of type %{ty} overflows u32"))
     }
 }
 

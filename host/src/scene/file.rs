@@ -42,7 +42,7 @@
 //! non-negative, `fov_y` lie strictly between 0 and 180, and a quad light span some area: an
 //! error names the file and the material, light or camera field otherwise.
 use super::{check_color, check_finite, cornell, obj, CameraSpec, PointLight, Scene};
-use anyhow::{anyhow, bail, Context, Result};
+use crate::error::{bail, err, Context, Result};
 use glam::Vec3;
 use kdray_shared::{Material, MAT_GLASS, MAT_MIRROR};
 use serde::Deserialize;
@@ -116,9 +116,9 @@ pub fn load_scene_file(path: &Path) -> Result<Scene> {
         match e.span() {
             Some(span) => {
                 let line = text[..span.start].matches('\n').count() + 1;
-                anyhow!("{name}:{line}: {msg}")
+                err!(SceneFile(name, Some(line)): "{msg}")
             }
-            None => anyhow!("{name}: {msg}"),
+            None => err!(SceneFile(name, None): "{msg}"),
         }
     })?;
     let dir = path.parent().unwrap_or(Path::new("."));
@@ -131,26 +131,26 @@ pub fn load_scene_file(path: &Path) -> Result<Scene> {
         let emission = check_color(&name, &format!("material '{mname}' emission"), m.emission.unwrap_or([0.0; 3]))?;
         let ior = m.ior.unwrap_or(1.5);
         if !(ior.is_finite() && ior >= 1.0 && ior <= 10.0) {
-            bail!("{name}: material '{mname}' ior must be between 1 and 10, got {ior}");
+            bail!(SceneFile(name, None): "material '{mname}' ior must be between 1 and 10, got {ior}");
         }
         scene.add_material(mname, Material { diffuse, flags, emission, ior });
     }
     if file.mesh.is_empty() {
-        bail!("{name}: no [[mesh]] entries: the scene is empty");
+        bail!(SceneFile(name, None): "no [[mesh]] entries: the scene is empty");
     }
     for (i, m) in file.mesh.iter().enumerate() {
         let mat = match &m.material {
             Some(mn) => Some(
                 scene
                     .material_id(mn)
-                    .ok_or_else(|| anyhow!("{name}: mesh {}: unknown material '{mn}'", i + 1))?,
+                    .ok_or_else(|| err!(SceneFile(name, None): "mesh {}: unknown material '{mn}'", i + 1))?,
             ),
             None => None,
         };
         let translate = finite(&name, &format!("mesh {} translate", i + 1), m.translate.unwrap_or([0.0; 3]))?;
         let scale = m.scale.unwrap_or(1.0);
         if !scale.is_finite() || scale == 0.0 {
-            bail!("{name}: mesh {}: scale must be finite and non-zero", i + 1);
+            bail!(SceneFile(name, None): "mesh {}: scale must be finite and non-zero", i + 1);
         }
         match (&m.file, &m.builtin) {
             (Some(f), None) => obj::add_obj(&mut scene, &dir.join(f), scale, translate, mat)?,
@@ -166,8 +166,8 @@ pub fn load_scene_file(path: &Path) -> Result<Scene> {
                     scene.camera = c.camera.clone();
                 }
             }
-            (None, Some(b)) => bail!("{name}: mesh {}: unknown builtin '{b}' (known: cornell)", i + 1),
-            _ => bail!("{name}: mesh {}: give exactly one of 'file' or 'builtin'", i + 1),
+            (None, Some(b)) => bail!(SceneFile(name, None): "mesh {}: unknown builtin '{b}' (known: cornell)", i + 1),
+            _ => bail!(SceneFile(name, None): "mesh {}: give exactly one of 'file' or 'builtin'", i + 1),
         }
     }
     for (i, l) in file.light.iter().enumerate() {
@@ -175,7 +175,7 @@ pub fn load_scene_file(path: &Path) -> Result<Scene> {
         match (l.point, l.corner) {
             (Some(p), None) => {
                 if l.edge1.is_some() || l.edge2.is_some() || l.emission.is_some() {
-                    bail!("{name}: light {}: a point light takes 'intensity', not 'edge1', 'edge2' or 'emission'", i + 1);
+                    bail!(SceneFile(name, None): "light {}: a point light takes 'intensity', not 'edge1', 'edge2' or 'emission'", i + 1);
                 }
                 let position = finite(&name, &what("point"), p)?;
                 let intensity = Vec3::from(check_color(&name, &what("intensity"), l.intensity.unwrap_or([1.0; 3]))?);
@@ -184,32 +184,32 @@ pub fn load_scene_file(path: &Path) -> Result<Scene> {
                     (Some(d), Some(cone)) => {
                         let d = finite(&name, &what("direction"), d)?;
                         if d.length_squared() == 0.0 {
-                            bail!("{name}: light {}: direction is zero", i + 1);
+                            bail!(SceneFile(name, None): "light {}: direction is zero", i + 1);
                         }
                         let start = l.falloff_start.unwrap_or(cone);
                         if !(cone > 0.0 && cone <= 90.0) || !(start >= 0.0 && start <= cone) {
-                            bail!("{name}: light {}: cone must be in (0, 90] degrees and falloff_start in [0, cone], got {cone} and {start}", i + 1);
+                            bail!(SceneFile(name, None): "light {}: cone must be in (0, 90] degrees and falloff_start in [0, cone], got {cone} and {start}", i + 1);
                         }
                         Some(super::Spot { direction: d.normalize(), cone_deg: cone, falloff_start_deg: start })
                     }
-                    _ => bail!("{name}: light {}: a spot light needs both 'direction' and 'cone'", i + 1),
+                    _ => bail!(SceneFile(name, None): "light {}: a spot light needs both 'direction' and 'cone'", i + 1),
                 };
                 scene.point_lights.push(PointLight { position, intensity, spot });
             }
             (None, Some(c)) => {
                 if l.intensity.is_some() {
-                    bail!("{name}: light {}: a quad light takes 'emission', not 'intensity'", i + 1);
+                    bail!(SceneFile(name, None): "light {}: a quad light takes 'emission', not 'intensity'", i + 1);
                 }
                 let c = finite(&name, &what("corner"), c)?;
                 let (e1, e2) = match (l.edge1, l.edge2) {
                     (Some(a), Some(b)) => (finite(&name, &what("edge1"), a)?, finite(&name, &what("edge2"), b)?),
-                    _ => bail!("{name}: light {}: a quad light needs edge1 and edge2", i + 1),
+                    _ => bail!(SceneFile(name, None): "light {}: a quad light needs edge1 and edge2", i + 1),
                 };
                 if e1.as_dvec3().cross(e2.as_dvec3()) == glam::DVec3::ZERO {
-                    bail!("{name}: light {}: edge1 {e1} and edge2 {e2} span no area", i + 1);
+                    bail!(SceneFile(name, None): "light {}: edge1 {e1} and edge2 {e2} span no area", i + 1);
                 }
                 if !(c + e1 + e2).is_finite() {
-                    bail!("{name}: light {}: corner + edge1 + edge2 is not finite in f32", i + 1);
+                    bail!(SceneFile(name, None): "light {}: corner + edge1 + edge2 is not finite in f32", i + 1);
                 }
                 let emission = check_color(&name, &what("emission"), l.emission.unwrap_or([1.0; 3]))?;
                 let id = scene.add_material(
@@ -218,7 +218,7 @@ pub fn load_scene_file(path: &Path) -> Result<Scene> {
                 );
                 scene.add_quad([c, c + e1, c + e1 + e2, c + e2], id)?;
             }
-            _ => bail!("{name}: light {}: give exactly one of 'point' or 'corner'", i + 1),
+            _ => bail!(SceneFile(name, None): "light {}: give exactly one of 'point' or 'corner'", i + 1),
         }
     }
     match file.camera {

@@ -4,7 +4,7 @@
 //! `dielectric`, emissive triangles → `area` emitters (one-sided, on the same side as here),
 //! point lights → `point`, spot lights → `spot`; a perspective sensor with a box filter.
 use super::Scene;
-use anyhow::{Context, Result};
+use crate::error::{Context, Result};
 use kdray_shared::{MAT_GLASS, MAT_MIRROR};
 use std::fmt::Write as _;
 use std::path::Path;

@@ -5,7 +5,7 @@ pub mod mitsuba;
 pub mod obj;
 pub mod procedural;
 
-use anyhow::{bail, Result};
+use crate::error::{bail, Result};
 use glam::Vec3;
 use kdray_shared::{Camera, Light, Material, Triangle, LIGHT_POINT, LIGHT_SPOT, LIGHT_TRIANGLE};
 
@@ -94,6 +94,38 @@ impl Scene {
         }
     }
 
+    /// A scene of one indexed triangle mesh (grey diffuse, no lights, a camera framing it):
+    /// what a user tracing rays at their own geometry starts from. `faces` index `vertices`;
+    /// an index out of range, a non-finite vertex or a mesh with no triangle of non-zero area
+    /// is an error naming the face. Faces of zero area are dropped (counted in
+    /// `dropped_degenerate`); `Hit::prim` indexes `triangles`, whose `face` is the face number.
+    ///
+    /// ```
+    /// let s = kdray::Scene::from_mesh("quad", &[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]], &[[0, 1, 2], [0, 2, 3]]).unwrap();
+    /// assert_eq!(s.triangles.len(), 2);
+    /// assert!(kdray::Scene::from_mesh("bad", &[[0.0; 3]; 3], &[[0, 1, 3]]).is_err());
+    /// ```
+    pub fn from_mesh(name: &str, vertices: &[[f32; 3]], faces: &[[u32; 3]]) -> Result<Scene> {
+        let mut s = Scene::new(name, CameraSpec::framing(Vec3::ZERO, Vec3::ONE));
+        let grey = s.add_material("default", Material { diffuse: [0.8; 3], ..Default::default() });
+        for (i, f) in faces.iter().enumerate() {
+            let mut v = [Vec3::ZERO; 3];
+            for k in 0..3 {
+                let Some(p) = vertices.get(f[k] as usize) else {
+                    bail!(Scene: "{name}: face {i}: vertex index {} out of range ({} vertices)", f[k], vertices.len());
+                };
+                v[k] = Vec3::from_array(*p);
+            }
+            s.add_triangle(v, grey, &|| format!("{name}: face {i}"))?;
+        }
+        if s.triangles.is_empty() {
+            bail!(Scene: "{name}: no triangle of non-zero area among {} faces", faces.len());
+        }
+        let (lo, hi) = s.bounds();
+        s.camera = CameraSpec::framing(lo, hi);
+        Ok(s)
+    }
+
     /// Material id by name, adding it if new.
     pub fn add_material(&mut self, name: &str, m: Material) -> u32 {
         if let Some(i) = self.material_names.iter().position(|n| n == name) {
@@ -113,10 +145,10 @@ impl Scene {
     /// "scene.obj: face 12"); a triangle of exactly zero area is dropped and counted.
     pub fn add_triangle(&mut self, v: [Vec3; 3], material: u32, what: &dyn Fn() -> String) -> Result<()> {
         if !v.iter().all(|p| p.is_finite()) {
-            bail!("{}: vertex coordinates are not finite ({:?}, {:?}, {:?})", what(), v[0], v[1], v[2]);
+            bail!(Scene: "{}: vertex coordinates are not finite ({:?}, {:?}, {:?})", what(), v[0], v[1], v[2]);
         }
         if (material as usize) >= self.materials.len() {
-            bail!("{}: material id {} does not exist", what(), material);
+            bail!(Scene: "{}: material id {} does not exist", what(), material);
         }
         let (a, b, c) = (v[0].as_dvec3(), v[1].as_dvec3(), v[2].as_dvec3());
         if (b - a).cross(c - a) == glam::DVec3::ZERO {
@@ -159,18 +191,18 @@ impl Scene {
     pub fn validate(&self) -> Result<()> {
         let name = &self.name;
         if self.triangles.is_empty() {
-            bail!("{name}: the scene has no triangles");
+            bail!(Scene: "{name}: the scene has no triangles");
         }
         if self.material_names.len() != self.materials.len() {
-            bail!("{name}: {} materials but {} material names", self.materials.len(), self.material_names.len());
+            bail!(Scene: "{name}: {} materials but {} material names", self.materials.len(), self.material_names.len());
         }
         // Triangles pushed directly (the field is public) get the checks `add_triangle` makes.
         for t in &self.triangles {
             if t.material as usize >= self.materials.len() {
-                bail!("{name}: face {}: material id {} does not exist", t.face, t.material);
+                bail!(Scene: "{name}: face {}: material id {} does not exist", t.face, t.material);
             }
             if ![t.v0, t.v1, t.v2].iter().flatten().all(|c| c.is_finite()) {
-                bail!("{name}: face {}: vertex coordinates are not finite ({:?}, {:?}, {:?})", t.face, t.v0, t.v1, t.v2);
+                bail!(Scene: "{name}: face {}: vertex coordinates are not finite ({:?}, {:?}, {:?})", t.face, t.v0, t.v1, t.v2);
             }
         }
         for (m, mname) in self.materials.iter().zip(&self.material_names) {
@@ -205,12 +237,12 @@ impl Scene {
                         format!("point light {} has a non-finite power: intensity {:?}", i + 1, light.emission)
                     }
                 };
-                bail!("{name}: {what}");
+                bail!(Scene: "{name}: {what}");
             }
             total += weight;
         }
         if !(total as f32).is_finite() {
-            bail!("{name}: the lights' total power {total:e} (area × luminance) overflows f32");
+            bail!(Scene: "{name}: the lights' total power {total:e} (area × luminance) overflows f32");
         }
         Ok(())
     }
@@ -391,7 +423,7 @@ pub(crate) fn fill_cdf(lights: &mut [Light], weights: &[f64]) {
 /// `v` must be finite: an error naming `what` of `name` otherwise.
 pub(crate) fn check_finite(name: &str, what: &str, v: [f32; 3]) -> Result<Vec3> {
     if !v.iter().all(|x| x.is_finite()) {
-        bail!("{name}: {what} is not finite: {v:?}");
+        bail!(Scene: "{name}: {what} is not finite: {v:?}");
     }
     Ok(Vec3::from(v))
 }
@@ -400,7 +432,7 @@ pub(crate) fn check_finite(name: &str, what: &str, v: [f32; 3]) -> Result<Vec3> 
 pub(crate) fn check_color(name: &str, what: &str, v: [f32; 3]) -> Result<[f32; 3]> {
     check_finite(name, what, v)?;
     if v.iter().any(|x| *x < 0.0) {
-        bail!("{name}: {what} is negative: {v:?}");
+        bail!(Scene: "{name}: {what} is negative: {v:?}");
     }
     Ok(v)
 }
@@ -414,15 +446,15 @@ impl CameraSpec {
         check_finite(name, "camera up", self.up.to_array())?;
         let fov = self.fov_y_deg;
         if !(fov > 0.0 && fov < 180.0) {
-            bail!("{name}: camera fov_y must be between 0 and 180 degrees (exclusive), got {fov}");
+            bail!(Scene: "{name}: camera fov_y must be between 0 and 180 degrees (exclusive), got {fov}");
         }
         let forward = (self.look_at - self.eye).normalize_or_zero();
         if forward == Vec3::ZERO || !forward.is_finite() {
-            bail!("{name}: camera eye and look_at must be distinct points, got {} and {}", self.eye, self.look_at);
+            bail!(Scene: "{name}: camera eye and look_at must be distinct points, got {} and {}", self.eye, self.look_at);
         }
         let right = forward.cross(self.up).normalize_or_zero();
         if right == Vec3::ZERO || !right.is_finite() {
-            bail!("{name}: camera up {} is zero or parallel to the view direction {}", self.up, forward);
+            bail!(Scene: "{name}: camera up {} is zero or parallel to the view direction {}", self.up, forward);
         }
         Ok(())
     }
@@ -440,11 +472,11 @@ pub fn load(spec: &str) -> Result<Scene> {
         "conference" => procedural::conference()?,
         s if s.starts_with("chairs:") => match s["chairs:".len()..].parse::<u32>() {
             Ok(k) => procedural::chairs(k)?,
-            Err(_) => bail!("'{s}': use chairs:K with K = 1, 4, 16, …, 4096"),
+            Err(_) => bail!(Scene: "'{s}': use chairs:K with K = 1, 4, 16, …, 4096"),
         },
         s if s.ends_with(".obj") => obj::load_obj_scene(std::path::Path::new(s))?,
         s if s.ends_with(".toml") => file::load_scene_file(std::path::Path::new(s))?,
-        s => bail!("unknown scene '{s}': use cornell, cornell-mirror, cornell-mirrors, cornell-glass, cornell-chair, chairs:K, conference, a .obj file or a .toml scene file"),
+        s => bail!(Scene: "unknown scene '{s}': use cornell, cornell-mirror, cornell-mirrors, cornell-glass, cornell-chair, chairs:K, conference, a .obj file or a .toml scene file"),
     };
     scene.validate()?;
     for w in scene.warnings_for(spec) {

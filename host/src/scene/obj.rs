@@ -1,7 +1,7 @@
 //! Wavefront OBJ/MTL input through `tobj`, with a line-by-line validation pass first so that a
 //! malformed file is reported as one line naming the file and the offending line.
 use super::{CameraSpec, PointLight, Scene};
-use anyhow::{anyhow, bail, Context, Result};
+use crate::error::{bail, err, Context, Result};
 use glam::Vec3;
 use kdray_shared::{Material, MAT_GLASS, MAT_MIRROR};
 use std::path::Path;
@@ -19,14 +19,14 @@ pub fn validate_obj_text(name: &str, text: &str) -> Result<()> {
             Some("v") => {
                 let nums: Vec<&str> = it.collect();
                 if nums.len() < 3 {
-                    bail!("{name}:{line_no}: vertex needs 3 coordinates: '{line}'");
+                    bail!(SceneFile(name, Some(line_no)): "vertex needs 3 coordinates: '{line}'");
                 }
                 for n in &nums[..3] {
                     let x: f32 = n
                         .parse()
-                        .map_err(|_| anyhow!("{name}:{line_no}: cannot parse vertex coordinate '{n}'"))?;
+                        .map_err(|_| err!(SceneFile(name, Some(line_no)): "cannot parse vertex coordinate '{n}'"))?;
                     if !x.is_finite() {
-                        bail!("{name}:{line_no}: vertex {} has a non-finite coordinate '{n}'", vertices + 1);
+                        bail!(SceneFile(name, Some(line_no)): "vertex {} has a non-finite coordinate '{n}'", vertices + 1);
                     }
                 }
                 vertices += 1;
@@ -35,17 +35,16 @@ pub fn validate_obj_text(name: &str, text: &str) -> Result<()> {
                 faces += 1;
                 let refs: Vec<&str> = it.collect();
                 if refs.len() < 3 {
-                    bail!("{name}:{line_no}: face {faces} has {} vertices, needs at least 3", refs.len());
+                    bail!(SceneFile(name, Some(line_no)): "face {faces} has {} vertices, needs at least 3", refs.len());
                 }
                 for r in refs {
                     let idx = r.split('/').next().unwrap_or("");
                     let k: i64 = idx
                         .parse()
-                        .map_err(|_| anyhow!("{name}:{line_no}: face {faces}: cannot parse vertex index '{r}'"))?;
+                        .map_err(|_| err!(SceneFile(name, Some(line_no)): "face {faces}: cannot parse vertex index '{r}'"))?;
                     let resolved = if k < 0 { vertices + 1 + k } else { k };
                     if k == 0 || resolved < 1 || resolved > vertices {
-                        bail!(
-                            "{name}:{line_no}: face {faces} refers to vertex {k}, but only {vertices} vertices are defined before it"
+                        bail!(SceneFile(name, Some(line_no)): "face {faces} refers to vertex {k}, but only {vertices} vertices are defined before it"
                         );
                     }
                 }
@@ -54,7 +53,7 @@ pub fn validate_obj_text(name: &str, text: &str) -> Result<()> {
         }
     }
     if faces == 0 {
-        bail!("{name}: no faces: the mesh is empty");
+        bail!(SceneFile(name, None): "no faces: the mesh is empty");
     }
     Ok(())
 }
@@ -76,7 +75,7 @@ pub fn validate_mtl_text(name: &str, text: &str) -> Result<()> {
                 let nums: Vec<&str> = it.take(3).collect();
                 let what = if material.is_empty() { k.to_string() } else { format!("material '{material}' {k}") };
                 if nums.len() < 3 {
-                    bail!("{name}:{line_no}: {what} needs 3 numbers (r g b): '{line}'");
+                    bail!(SceneFile(name, Some(line_no)): "{what} needs 3 numbers (r g b): '{line}'");
                 }
                 if k == "Ka" || k == "Ks" {
                     continue;
@@ -84,10 +83,10 @@ pub fn validate_mtl_text(name: &str, text: &str) -> Result<()> {
                 for n in nums {
                     let Ok(x) = n.parse::<f32>() else { continue };
                     if !x.is_finite() {
-                        bail!("{name}:{line_no}: {what} has a non-finite value '{n}'");
+                        bail!(SceneFile(name, Some(line_no)): "{what} has a non-finite value '{n}'");
                     }
                     if x < 0.0 {
-                        bail!("{name}:{line_no}: {what} has a negative value '{n}'");
+                        bail!(SceneFile(name, Some(line_no)): "{what} has a negative value '{n}'");
                     }
                 }
             }
@@ -131,7 +130,7 @@ fn material_from_mtl(name: &str, m: &tobj::Material) -> Result<Material> {
     };
     let ior = match m.optical_density {
         Some(n) if n.is_finite() && (1.0..=10.0).contains(&n) => n,
-        Some(n) if flags & MAT_GLASS != 0 => bail!("{name}: {} must be between 1 and 10, got {n}", what("Ni")),
+        Some(n) if flags & MAT_GLASS != 0 => bail!(SceneFile(name, None): "{} must be between 1 and 10, got {n}", what("Ni")),
         _ => 1.5,
     };
     Ok(Material { diffuse, flags, emission, ior })
@@ -151,7 +150,7 @@ pub fn add_obj(
     validate_obj_text(&name, &text)?;
     validate_mtllibs(path, &text)?;
     let opts = tobj::LoadOptions { triangulate: true, single_index: true, ..Default::default() };
-    let (models, mtls) = tobj::load_obj(path, &opts).map_err(|e| anyhow!("{name}: {e}"))?;
+    let (models, mtls) = tobj::load_obj(path, &opts).map_err(|e| err!(SceneFile(name, None): "{e}"))?;
     // A missing or broken .mtl is not fatal: faces fall back to the default material.
     let mtls = mtls.unwrap_or_else(|e| {
         eprintln!("warning: {name}: materials not loaded ({e}); using a grey default");
@@ -182,7 +181,7 @@ pub fn add_obj(
         }
     }
     if face_no == 0 {
-        bail!("{name}: no triangles: the mesh is empty");
+        bail!(SceneFile(name, None): "no triangles: the mesh is empty");
     }
     Ok(())
 }

@@ -3,7 +3,7 @@
 //! Cornell box with a chair, and a conference room of about 280 000 triangles standing in for
 //! Greg Ward's Conference scene. All closed meshes are built from shared vertex positions.
 use super::{cornell, CameraSpec, PointLight, Scene};
-use anyhow::{bail, Result};
+use crate::error::{bail, Result};
 use glam::{Mat3, Vec3};
 use kdray_shared::Material;
 
@@ -115,7 +115,7 @@ fn diffuse(c: [f32; 3]) -> Material {
 pub fn chairs(k: u32) -> Result<Scene> {
     let side = (k as f64).sqrt().round() as u32;
     if k == 0 || side * side != k || !side.is_power_of_two() || k > 4096 {
-        bail!("chairs:{k}: K must be 1, 4, 16, … (a power of 4) up to 4096");
+        bail!(Scene: "chairs:{k}: K must be 1, 4, 16, … (a power of 4) up to 4096");
     }
     let spacing = 0.8;
     let half = side as f32 * spacing * 0.5;

@@ -15,15 +15,15 @@ mod suites;
 mod table;
 
 pub use suites::{run_suite, Options, Scenes, SUITES};
-pub use table::{write_cells, write_rows, Row};
+pub use table::{write_cells, Row};
 
-use crate::accel::{Accel, Pipeline};
-use crate::gpu::{self, median, Gpu};
-use crate::kdtree::KdTreeData;
-use crate::runtime::cpu::NATIVE;
-use crate::scene::Scene;
-use crate::tracer::Tracer;
-use crate::analysis;
+use kdray::accel::{Accel, Pipeline};
+use kdray::gpu::{self, median, Gpu};
+use kdray::kdtree::KdTreeData;
+use kdray::runtime::cpu::NATIVE;
+use kdray::scene::Scene;
+use kdray::tracer::Tracer;
+use kdray::analysis;
 use anyhow::Result;
 use kdray_shared::kdtree::Algorithm;
 use kdray_shared::query::{AnyHit, Closest};
@@ -108,22 +108,22 @@ impl<'a> Bed<'a> {
     }
 
     /// Times the passes that answer queries for `rays` with `accel` on the GPU (one batch).
-    pub fn time(&self, g: &Gpu, t: &Tracer, accel: Accel, closest: bool, rays: &[Ray], reps: usize) -> Result<crate::gpu::Timing> {
+    pub fn time(&self, g: &Gpu, t: &Tracer, accel: Accel, closest: bool, rays: &[Ray], reps: usize) -> Result<kdray::gpu::Timing> {
         t.check(accel)?;
         if t.batch_size(accel, rays.len()) < rays.len() {
             anyhow::bail!("{} rays do not fit one GPU batch", rays.len());
         }
-        let rt: &dyn crate::Runtime = g;
+        let rt: &dyn kdray::Runtime = g;
         let rbuf = rt.upload("ray", rays)?;
         let lists = t.leaf_lists(accel, rays.len())?;
         if closest {
             let out = rt.alloc::<kdray_shared::Hit>("result", rays.len())?;
             let passes = t.query_passes::<Closest>(accel, rays.len(), &rbuf, &out, lists.as_ref())?;
-            g.time_passes(&passes.iter().map(|k| k.as_ref()).collect::<Vec<_>>(), reps)
+            Ok(g.time_passes(&passes.iter().map(|k| k.as_ref()).collect::<Vec<_>>(), reps)?)
         } else {
             let out = rt.alloc::<u32>("result", rays.len())?;
             let passes = t.query_passes::<AnyHit>(accel, rays.len(), &rbuf, &out, lists.as_ref())?;
-            g.time_passes(&passes.iter().map(|k| k.as_ref()).collect::<Vec<_>>(), reps)
+            Ok(g.time_passes(&passes.iter().map(|k| k.as_ref()).collect::<Vec<_>>(), reps)?)
         }
     }
 
@@ -156,7 +156,7 @@ impl<'a> Bed<'a> {
                 // kept: on the H100 the same kernel on the same rays ran up to 5× slower in
                 // some attempts than in others, steadily within an attempt (see
                 // docs/benchmarks/README.md).
-                let mut best: Option<crate::gpu::Timing> = None;
+                let mut best: Option<kdray::gpu::Timing> = None;
                 let mut medians = Vec::new();
                 for _ in 0..ATTEMPTS {
                     let t = self.time(g, gt, accel, set.closest, &set.rays, self.reps)?;

@@ -1,12 +1,12 @@
 //! The `kdray` command line.
-use crate::accel::Accel;
-use crate::gpu::{self, Gpu};
-use crate::image_out::{compare, write_png};
-use crate::integrator::path::{self, PathOptions};
-use crate::integrator::photon::{self as pm, IndexKind, PhotonMap, PhotonOptions};
-use crate::kdtree::{self, BuildOptions, KdTreeData};
-use crate::runtime::cpu::NATIVE;
-use crate::{scene, Runtime, Tracer};
+use kdray::accel::Accel;
+use kdray::gpu::{self, Gpu};
+use kdray::image_out::{compare, write_png};
+use kdray::integrator::path::{self, PathOptions};
+use kdray::integrator::photon::{self as pm, IndexKind, PhotonMap, PhotonOptions};
+use kdray::kdtree::{self, BuildOptions, KdTreeData};
+use kdray::runtime::cpu::NATIVE;
+use kdray::{scene, Runtime, Tracer};
 use anyhow::{bail, Result};
 use clap::{Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -156,7 +156,7 @@ pub enum Command {
         #[arg(long, value_enum, default_value = "scanline")]
         ray_order: RayOrderArg,
         /// Leaf-list entries per ray of the decomposed pipeline.
-        #[arg(long, default_value_t = crate::accel::DEFAULT_LEAF_CAPACITY)]
+        #[arg(long, default_value_t = kdray::accel::DEFAULT_LEAF_CAPACITY)]
         leaf_capacity: u32,
         /// Bounces of eye paths (specular ones for direct and photon; all for path); default
         /// 4 (direct), 16 (photon), 32 (path).
@@ -274,6 +274,21 @@ pub enum Command {
     },
 }
 
+/// A terminal progress bar for the library's integrators.
+pub struct Bar(pub ProgressBar);
+
+impl kdray::integrator::Progress for Bar {
+    fn start(&self, total: u64) {
+        self.0.set_length(total);
+    }
+    fn advance(&self, n: u64) {
+        self.0.inc(n);
+    }
+    fn status(&self, text: &str) {
+        self.0.set_message(text.to_string());
+    }
+}
+
 fn progress(label: &str) -> ProgressBar {
     let pb = ProgressBar::new(0);
     pb.set_style(
@@ -303,12 +318,12 @@ pub fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Command::Error { image, reference } => {
-            let (w, h, a) = crate::image_out::read_pfm(&image)?;
-            let (w2, h2, b) = crate::image_out::read_pfm(&reference)?;
+            let (w, h, a) = kdray::image_out::read_pfm(&image)?;
+            let (w2, h2, b) = kdray::image_out::read_pfm(&reference)?;
             if (w, h) != (w2, h2) {
                 bail!("{} is {w}x{h} but {} is {w2}x{h2}", image.display(), reference.display());
             }
-            let e = crate::image_out::image_error(&a, &b);
+            let e = kdray::image_out::image_error(&a, &b);
             println!("relative RMSE {:.4} % (clamped at 1, / reference mean), relMSE {:.3e}, mean {:.5} vs {:.5}", e.rel_rmse * 100.0, e.rel_mse, e.mean, e.reference_mean);
             Ok(())
         }
@@ -322,12 +337,12 @@ pub fn run(cli: Cli) -> Result<()> {
             }
             if compile {
                 let g = Gpu::new()?;
-                for e in &crate::runtime::module::module_info()?.entry_points {
+                for e in &kdray::runtime::module::module_info()?.entry_points {
                     if !only.is_empty() && !only.iter().any(|o| e.name.contains(o.as_str())) {
                         continue;
                     }
                     use std::io::Write as _;
-                    print!("compiling {} ... ", crate::runtime::module::short_name(&e.name));
+                    print!("compiling {} ... ", kdray::runtime::module::short_name(&e.name));
                     std::io::stdout().flush()?;
                     let start = Instant::now();
                     g.compile(&e.name)?;
@@ -466,7 +481,7 @@ pub fn run(cli: Cli) -> Result<()> {
                 Some(g) => g,
                 None => &NATIVE,
             };
-            let render = |rt: &dyn Runtime| -> Result<crate::RenderOutput> {
+            let render = |rt: &dyn Runtime| -> Result<kdray::RenderOutput> {
                 let t = Tracer::new(rt, &scene, tree)?;
                 println!("device: {}, traversal {}", t.device_name(), accel.name());
                 let start = Instant::now();
@@ -479,7 +494,7 @@ pub fn run(cli: Cli) -> Result<()> {
                         };
                         o.fused = !split_passes;
                         let pb = progress("render");
-                        let r = path::render(&t, accel, &cam, &o, &pb)?;
+                        let r = path::render(&t, accel, &cam, &o, &Bar(pb.clone()))?;
                         pb.finish_and_clear();
                         r
                     }
@@ -507,7 +522,7 @@ pub fn run(cli: Cli) -> Result<()> {
                         };
                         let mut map = PhotonMap::new(&t, accel, tree, scene.surface_area(), o)?;
                         let pb = progress_passes();
-                        let (r, s) = pm::render(&mut map, &cam, &pb)?;
+                        let (r, s) = pm::render(&mut map, &cam, &Bar(pb.clone()))?;
                         pb.finish_and_clear();
                         println!(
                             "photon mapping: {} passes × {} photons, {:.1} M photons stored, radius {:.4} → {:.4}, {:.1} M photons/s",
@@ -534,7 +549,7 @@ pub fn run(cli: Cli) -> Result<()> {
             println!("wrote {}", out.display());
             if integrator != IntegratorArg::Direct {
                 let pfm = out.with_extension("pfm");
-                crate::image_out::write_pfm(&img, &pfm)?;
+                kdray::image_out::write_pfm(&img, &pfm)?;
                 println!("wrote {} (linear radiance)", pfm.display());
             }
             if cmp {
@@ -583,7 +598,7 @@ fn render_accel(traversal: Option<&str>, packets: bool, pipeline: PipelineArg, l
             if traversal.is_some() || packets {
                 bail!("--pipeline decomposed traverses with the full stack, one ray per thread: drop --traversal and --packets");
             }
-            Accel::parse(&format!("decomposed:{leaf_capacity}"))
+            Ok(Accel::parse(&format!("decomposed:{leaf_capacity}"))?)
         }
         PipelineArg::Monolithic => {
             let accel = Accel::parse(traversal.unwrap_or("shortstack"))?;

@@ -3,10 +3,10 @@
 use super::plot::{bar_chart, line_chart, BarChart, LineChart, Series};
 use super::table::{markdown, write_cells, write_rows, Row};
 use super::{answers, device_line, dump, mismatch, rays, Bed, RaySet};
-use crate::gpu::{median, Gpu};
-use crate::kdtree::{self, BuildOptions, KdTreeData};
-use crate::scene::{self, Scene};
-use crate::accel::Accel;
+use kdray::gpu::{median, Gpu};
+use kdray::kdtree::{self, BuildOptions, KdTreeData};
+use kdray::scene::{self, Scene};
+use kdray::accel::Accel;
 use anyhow::{bail, Result};
 use indicatif::ProgressBar;
 use kdray_shared::kdtree::Algorithm;
@@ -240,7 +240,7 @@ fn bounces(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
             }
             let set = bed.ray_set(format!("reflection {n}"), r, true)?;
             dump_set(o, &bed, &set)?;
-            let coherent = crate::analysis::coherent_packets(&set.rays) as f64 / set.rays.len().div_ceil(4) as f64;
+            let coherent = kdray::analysis::coherent_packets(&set.rays) as f64 / set.rays.len().div_ceil(4) as f64;
             let mut line = vec![n.to_string(), set.rays.len().to_string(), format!("{:.1} %", 100.0 * coherent)];
             for (m, accel) in methods.iter().enumerate() {
                 let row = bed.measure(&set, *accel)?;
@@ -335,8 +335,8 @@ fn stage(entry: &str) -> &'static str {
 
 /// Times every pass of a whole `direct` frame (which must fit one batch): the kernels' entry
 /// points in order and their timings.
-fn time_frame(g: &crate::Gpu, t: &crate::Tracer, accel: Accel, cam: &kdray_shared::Camera, reps: usize) -> Result<(Vec<String>, crate::gpu::Timing)> {
-    use crate::integrator::path;
+fn time_frame(g: &kdray::Gpu, t: &kdray::Tracer, accel: Accel, cam: &kdray_shared::Camera, reps: usize) -> Result<(Vec<String>, kdray::gpu::Timing)> {
+    use kdray::integrator::path;
     t.check(accel)?;
     let n = (cam.width * cam.height) as usize;
     if t.batch_size(accel, n) < n {
@@ -354,7 +354,7 @@ const STAGES: [&str; 5] = ["traverse", "intersect", "fallback", "trace", "shade"
 /// the decomposed pipeline, next to the monolithic short-stack kernels, with the image
 /// difference between the two (0 expected), fallback rays and leaf-list memory.
 fn breakdown(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
-    let capacity = crate::accel::DEFAULT_LEAF_CAPACITY;
+    let capacity = kdray::accel::DEFAULT_LEAF_CAPACITY;
     let decomposed = Accel::decomposed(capacity);
     let monolithic = Accel::kd(Algorithm::ShortStack(3));
     let mut specs = horn_scenes(o);
@@ -379,9 +379,9 @@ fn breakdown(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
             }
         }
         let cam = scene.camera.to_pod(o.size, o.size);
-        let pb = ProgressBar::hidden();
-        let a = crate::integrator::direct::render(bed.tracer(), decomposed, &cam, 1, 4, &pb)?;
-        let b = crate::integrator::direct::render(bed.tracer(), monolithic, &cam, 1, 4, &pb)?;
+        let pb = ();
+        let a = kdray::integrator::direct::render(bed.tracer(), decomposed, &cam, 1, 4, &pb)?;
+        let b = kdray::integrator::direct::render(bed.tracer(), monolithic, &cam, 1, 4, &pb)?;
         let differ = a.radiance.iter().zip(&b.radiance).zip(a.hits.iter().zip(&b.hits)).filter(|((x, y), (h, k))| x != y || h.prim != k.prim).count();
         let list_mib = super::leaf_list_mib(primary.rays.len(), capacity);
         let Some((g, gt)) = &bed.gpu else {
@@ -502,7 +502,7 @@ fn visits(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
             let mut curve = Vec::new();
             for (i, alg) in algs.iter().enumerate() {
                 let accel = Accel::kd(*alg);
-                let c = crate::analysis::counts(&scene.triangles, tree, accel, &set.rays, set.closest)?;
+                let c = kdray::analysis::counts(&scene.triangles, tree, accel, &set.rays, set.closest)?;
                 let n = set.rays.len().max(1) as f64;
                 let sum = |f: fn(&kdray_shared::stats::Counters) -> u32| c.iter().map(|x| f(x) as f64).sum::<f64>() / n;
                 let nodes = sum(|x| x.nodes);

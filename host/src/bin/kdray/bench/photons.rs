@@ -17,16 +17,15 @@
 use super::plot::{line_chart, LineChart, Series};
 use super::suites::{dev_name, short_device_name};
 use super::{device_line, write_cells, Options, Scenes};
-use crate::accel::Accel;
-use crate::image_out::{image_error, write_pfm};
-use crate::integrator::path::{self, FrameBuffers, PathOptions};
-use crate::integrator::photon::{self as pm, IndexKind, PhotonMap, PhotonOptions};
-use crate::integrator::RenderOutput;
-use crate::runtime::cpu::NATIVE;
-use crate::runtime::{Commands, Runtime};
-use crate::tracer::Tracer;
+use kdray::accel::Accel;
+use kdray::image_out::{image_error, write_pfm};
+use kdray::integrator::path::{self, FrameBuffers, PathOptions};
+use kdray::integrator::photon::{self as pm, IndexKind, PhotonMap, PhotonOptions};
+use kdray::integrator::RenderOutput;
+use kdray::runtime::cpu::NATIVE;
+use kdray::runtime::{Commands, Runtime};
+use kdray::tracer::Tracer;
 use anyhow::{Context, Result};
-use indicatif::ProgressBar;
 use kdray_shared::kdtree::Algorithm;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -40,7 +39,7 @@ fn scenes(o: &Options) -> Vec<String> {
 /// Milliseconds per copy of what `record` records: `copies` copies in one submission, the
 /// median of 3 attempts after one warm-up attempt. On a GPU from submission to completion; the
 /// native runtime runs passes as they are recorded, so there the recording is timed too.
-fn time_recorded(rt: &dyn Runtime, copies: u32, record: &dyn Fn(&mut Commands) -> Result<()>) -> Result<f64> {
+fn time_recorded(rt: &dyn Runtime, copies: u32, record: &dyn Fn(&mut Commands) -> kdray::Result<()>) -> Result<f64> {
     let mut ms = Vec::new();
     for attempt in 0..4 {
         rt.finish()?;
@@ -56,7 +55,7 @@ fn time_recorded(rt: &dyn Runtime, copies: u32, record: &dyn Fn(&mut Commands) -
             ms.push(start.elapsed().as_secs_f64() * 1e3 / copies as f64);
         }
     }
-    Ok(crate::gpu::median(&ms).unwrap_or(f64::NAN))
+    Ok(kdray::gpu::median(&ms).unwrap_or(f64::NAN))
 }
 
 fn error_of(img: &RenderOutput, reference: &RenderOutput) -> (f64, f64) {
@@ -160,7 +159,7 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
         }
         // Error against time at err_size².
         let cam = scene.camera.to_pod(err_size, err_size);
-        let hidden = ProgressBar::hidden();
+        let hidden = ();
         let ref_spp: u32 = std::env::var("KDRAY_REFERENCE_SPP").ok().and_then(|v| v.parse().ok()).unwrap_or(if software { 256 } else { 8192 });
         // The reference: `KDRAY_REFERENCE_DIR/reference-SCENE.pfm` if there is one (with its own
         // error in `reference-SCENE.err`, e.g. from scripts/mitsuba_path.py --reference), else
@@ -169,7 +168,7 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
         let given = std::env::var("KDRAY_REFERENCE_DIR").ok().map(PathBuf::from).map(|d| (d.join(format!("reference-{}.pfm", scene.name)), d.join(format!("reference-{}.err", scene.name))));
         let (reference, ref_err, ref_what) = match given.filter(|(p, _)| p.exists()) {
             Some((p, e)) => {
-                let (w, h, px) = crate::image_out::read_pfm(&p)?;
+                let (w, h, px) = kdray::image_out::read_pfm(&p)?;
                 anyhow::ensure!(w == err_size && h == err_size, "{} is {w}x{h}, not {err_size}²", p.display());
                 let mut r = RenderOutput::new(w, h);
                 for (d, s) in r.radiance.iter_mut().zip(px) {
@@ -198,7 +197,7 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
         };
         ref_notes.push(format!("{}: reference {ref_what}, its own error {:.3} %", scene.name, ref_err * 100.0));
         let corrected = |e: f64| (e * e - ref_err * ref_err).max(0.0).sqrt();
-        let _ = crate::scene::mitsuba::export(scene, &o.out.join(format!("mitsuba-{}", scene.name)), err_size, err_size, 65);
+        let _ = kdray::scene::mitsuba::export(scene, &o.out.join(format!("mitsuba-{}", scene.name)), err_size, err_size, 65);
         let mut series: Vec<Series> = Vec::new();
         let pass_counts: Vec<u32> = if software { vec![1, 4] } else { vec![1, 4, 16, 64, 256] };
         let d = PhotonOptions { photons, eye_samples: 4, ..Default::default() };

@@ -1,3 +1,7 @@
+//! The `kdray` command line: render, benchmark suites, exports and plots over the library.
+mod bench;
+mod cli;
+
 use clap::Parser;
 
 fn main() {
@@ -7,8 +11,8 @@ fn main() {
     if std::env::var_os("XDG_RUNTIME_DIR").is_none() {
         std::env::set_var("XDG_RUNTIME_DIR", std::env::temp_dir());
     }
-    let cli = kdray::cli::Cli::parse();
-    if let Err(e) = kdray::cli::run(cli) {
+    let cli = cli::Cli::parse();
+    if let Err(e) = cli::run(cli) {
         eprintln!("error: {e:#}");
         std::process::exit(1);
     }

@@ -1,11 +1,11 @@
 //! The ray batches of the benchmarks, generated natively with the renderer's own functions:
 //! primary rays through pixel centres, the shadow rays of the pixels that hit, and the rays of
 //! the n-th mirror reflection.
-use crate::kdtree::KdTreeData;
-use crate::scene::Scene;
-use crate::accel::Accel;
-use crate::runtime::cpu::NATIVE;
-use crate::tracer::Tracer;
+use kdray::kdtree::KdTreeData;
+use kdray::scene::Scene;
+use kdray::accel::Accel;
+use kdray::runtime::cpu::NATIVE;
+use kdray::tracer::Tracer;
 use anyhow::Result;
 use kdray_shared::kdtree::Algorithm;
 use kdray_shared::{camera, shade, PathState, Ray};

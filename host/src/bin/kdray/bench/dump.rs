@@ -10,7 +10,7 @@
 //!   for shadow rays (any-hit queries) 1 = occluded, 0 = not;
 //! * `<scene>-<rays>-hit-t.npy`: float32 (N,): distance along the ray (closest hit; +inf for a
 //!   miss and for any-hit queries).
-use crate::scene::Scene;
+use kdray::scene::Scene;
 use anyhow::{Context, Result};
 use kdray_shared::{Hit, Ray};
 use std::fmt::Write as _;
