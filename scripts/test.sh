@@ -13,6 +13,8 @@ export KDRAY_REQUIRE_GPU=1
 export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-${TMPDIR:-/tmp}}"
 cargo test --release --workspace "$@"
 cargo test --release --manifest-path shader-crate/Cargo.toml --target-dir target/shader-host "$@"
+# The API documentation builds without a warning (every public item documented).
+RUSTDOCFLAGS="-D warnings" cargo doc --release --no-deps -p kdray -p kdray-shared
 # The examples, small.
 cargo run --release --example trace_arrays
 cargo run --release --example render_obj -- scenes/room.obj target/examples-room-obj.png 64 16

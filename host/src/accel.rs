@@ -12,12 +12,14 @@ use kdray_shared::kdtree::{Algorithm, MAX_SHORT_STACK};
 pub enum Structure {
     /// Every triangle (the oracle).
     Brute,
+    /// The SAH kd-tree (it must have been built).
     KdTree,
 }
 
 /// How many rays one thread traces together.
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Hash)]
 pub enum Grouping {
+    /// One ray per thread.
     Single,
     /// Four rays with lane masks (Wald; Horn et al.'s packet variant on the GPU).
     Packet4,
@@ -26,19 +28,26 @@ pub enum Grouping {
 /// How a query is split into kernels.
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Hash)]
 pub enum Pipeline {
+    /// One kernel per query: traversal and intersection together.
     Monolithic,
     /// Frolov & Ignatenko: leaf lists of `capacity` entries per ray (full-stack traversal),
     /// intersection over them, a full-stack fallback for rays whose list overflowed.
-    Decomposed { capacity: u32 },
+    Decomposed {
+        /// Leaf-list entries per ray.
+        capacity: u32,
+    },
 }
 
 /// One way of finding hits: structure × traversal × grouping × pipeline.
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Hash)]
 pub struct Accel {
+    /// What is searched.
     pub structure: Structure,
     /// The kd traversal (ignored by brute force; the decomposed pipeline uses the full stack).
     pub traversal: Algorithm,
+    /// How many rays one thread traces together.
     pub grouping: Grouping,
+    /// How a query is split into kernels.
     pub pipeline: Pipeline,
 }
 
@@ -99,6 +108,8 @@ impl Accel {
         })
     }
 
+    /// The name `parse` reads back: `brute`, a traversal (`shortstack:N`, never bare
+    /// `shortstack`), with `+packets` for packets, or `decomposed:CAPACITY`.
     pub fn name(&self) -> String {
         match (self.structure, self.grouping, self.pipeline) {
             (Structure::Brute, _, _) => "brute".into(),
@@ -116,6 +127,7 @@ impl Accel {
         }
     }
 
+    /// Whether rays are traced in packets of four.
     pub fn is_packet(self) -> bool {
         self.grouping == Grouping::Packet4
     }

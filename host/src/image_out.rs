@@ -1,6 +1,10 @@
-//! From linear radiance to PNG, and pixel-by-pixel comparison of two renders.
-use crate::integrator::RenderOutput;
+//! Images: linear radiance to a PNG preview, PFM, and OpenEXR with the primary hits' AOVs
+//! (depth, normal, albedo, triangle id) as named channels; pixel-by-pixel comparison of two
+//! renders.
 use crate::error::{err, Context, Result};
+use crate::integrator::RenderOutput;
+use crate::scene::Scene;
+use kdray_shared::{shade, Camera, Ray, MISS};
 use std::path::Path;
 
 /// Linear → sRGB-encoded 8-bit (clamped).
@@ -18,6 +22,7 @@ pub fn to_rgb8(out: &RenderOutput, exposure: f32) -> image::RgbImage {
     })
 }
 
+/// The tonemapped preview: radiance ÷ `exposure`, clamped, sRGB-encoded 8-bit PNG.
 pub fn write_png(out: &RenderOutput, exposure: f32, path: &Path) -> Result<()> {
     to_rgb8(out, exposure).save(path).with_context(|| format!("cannot write {}", path.display()))
 }
@@ -34,6 +39,47 @@ pub fn write_pfm(out: &RenderOutput, path: &Path) -> Result<()> {
         }
     }
     std::fs::write(path, bytes).with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// The render as one OpenEXR file (32-bit float channels, ZIP-compressed, one layer):
+/// linear radiance `R`, `G`, `B`, and for each pixel's primary hit (one eye sample of the last
+/// pass) the AOVs `depth.Z` (distance from the eye; +inf where the ray missed),
+/// `normal.X`/`.Y`/`.Z` (unit geometric normal facing the eye; 0 on a miss), `albedo.R`/`.G`/`.B`
+/// (the material's diffuse reflectance; 0 on a miss) and `id` (32-bit unsigned: the triangle,
+/// `Hit::prim`; `u32::MAX` on a miss). `cam` and `scene` must be those of the render.
+pub fn write_exr(out: &RenderOutput, scene: &Scene, cam: &Camera, path: &Path) -> Result<()> {
+    use exr::prelude::*;
+    let n = (out.width * out.height) as usize;
+    if out.radiance.len() != n || out.hits.len() != n {
+        return Err(err!(InvalidInput: "write_exr: {}×{} image with {} pixels and {} hits", out.width, out.height, out.radiance.len(), out.hits.len()));
+    }
+    let mut f = vec![Vec::with_capacity(n); 10];
+    let mut id = Vec::with_capacity(n);
+    for (c, h) in out.radiance.iter().zip(&out.hits) {
+        let aov = match scene.triangles.get(h.prim as usize).filter(|_| h.prim != MISS) {
+            Some(tri) => {
+                let (p, _) = shade::surface_point(tri, h, &Ray::new(cam.origin, [0.0, 0.0, 1.0], 0.0, 1.0));
+                let to_eye = [cam.origin[0] - p[0], cam.origin[1] - p[1], cam.origin[2] - p[2]];
+                let (_, normal) = shade::surface_point(tri, h, &Ray::new(cam.origin, [-to_eye[0], -to_eye[1], -to_eye[2]], 0.0, 1.0));
+                let albedo = scene.materials.get(tri.material as usize).map_or([0.0; 3], |m| m.diffuse);
+                let depth = (to_eye[0] * to_eye[0] + to_eye[1] * to_eye[1] + to_eye[2] * to_eye[2]).sqrt();
+                [depth, normal[0], normal[1], normal[2], albedo[0], albedo[1], albedo[2]]
+            }
+            None => [f32::INFINITY, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        };
+        for (k, v) in [c[0], c[1], c[2]].into_iter().chain(aov).enumerate() {
+            f[k].push(v);
+        }
+        id.push(if h.prim == MISS { u32::MAX } else { h.prim });
+    }
+    let names = ["R", "G", "B", "depth.Z", "normal.X", "normal.Y", "normal.Z", "albedo.R", "albedo.G", "albedo.B"];
+    let mut list: SmallVec<[AnyChannel<FlatSamples>; 4]> = names.iter().zip(f).map(|(name, v)| AnyChannel::new(*name, FlatSamples::F32(v))).collect();
+    list.push(AnyChannel::new("id", FlatSamples::U32(id)));
+    let layer = Layer::new((out.width as usize, out.height as usize), LayerAttributes::named("kdray"), Encoding::SMALL_LOSSLESS, AnyChannels::sort(list));
+    Image::from_layer(layer).write().to_file(path).map_err(|e| match e {
+        exr::error::Error::Io(io) => crate::Error::io(path, io),
+        e => err!(InvalidInput: "{}: cannot write OpenEXR: {e}", path.display()),
+    })
 }
 
 /// Reads a PFM written by `write_pfm` (3 channels, little-endian): width, height, rows top first.
@@ -80,10 +126,13 @@ pub struct ImageError {
     pub rel_rmse: f64,
     /// Mean over channels of (a − b)² / (b² + 0.01), unclamped.
     pub rel_mse: f64,
+    /// Mean of the displayed (clamped) image.
     pub mean: f64,
+    /// Mean of the displayed (clamped) reference.
     pub reference_mean: f64,
 }
 
+/// The error of linear image `a` against `reference` (same size, rows alike).
 pub fn image_error(a: &[[f32; 3]], reference: &[[f32; 3]]) -> ImageError {
     let clamp = |v: f32| if v.is_finite() { v.clamp(0.0, 1.0) as f64 } else { 0.0 };
     let (mut se, mut rel, mut ma, mut mb) = (0.0, 0.0, 0.0, 0.0);
@@ -105,6 +154,7 @@ pub fn image_error(a: &[[f32; 3]], reference: &[[f32; 3]]) -> ImageError {
 /// How two renders of the same camera differ.
 #[derive(Clone, Debug, Default)]
 pub struct Comparison {
+    /// Pixels compared.
     pub pixels: usize,
     /// Pixels whose primary hit triangle differs.
     pub id_mismatches: usize,
@@ -112,9 +162,12 @@ pub struct Comparison {
     pub max_rel_dt: f32,
     /// Pixels with the same primary hit whose 8-bit colours differ, and the largest difference.
     pub colour_mismatches: usize,
+    /// The largest difference of an 8-bit channel among them.
     pub max_colour_diff: u8,
 }
 
+/// Compares two renders of one camera pixel by pixel: primary hits, then 8-bit colours at
+/// `exposure`.
 pub fn compare(a: &RenderOutput, b: &RenderOutput, exposure: f32) -> Comparison {
     let (ia, ib) = (to_rgb8(a, exposure), to_rgb8(b, exposure));
     let mut c = Comparison { pixels: a.hits.len(), ..Default::default() };
@@ -149,5 +202,65 @@ impl std::fmt::Display for Comparison {
             self.colour_mismatches,
             self.max_colour_diff
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::integrator::path::{self, PathOptions};
+    use crate::runtime::cpu::NATIVE;
+    use crate::{scene, Accel, Tracer};
+
+    /// Every channel of the EXR reads back as written: radiance as the PFM's, the id as the
+    /// primary hit's triangle, depth as the distance to the hit point, unit normals facing the
+    /// eye, albedo as the material's.
+    #[test]
+    fn exr_holds_radiance_and_the_primary_hits_aovs() {
+        use exr::prelude::*;
+        let scene = scene::load("cornell").unwrap();
+        let cam = scene.camera.to_pod(24, 16);
+        let t = Tracer::new(&NATIVE, &scene, None).unwrap();
+        let img = path::render(&t, Accel::BRUTE, &cam, &PathOptions::path(3, 4, 2), &()).unwrap();
+        let dir = std::env::temp_dir().join(format!("kdray-exr-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("aov.exr");
+        write_exr(&img, &scene, &cam, &path).unwrap();
+        let read = read_all_flat_layers_from_file(&path).unwrap();
+        let layer = &read.layer_data[0];
+        assert_eq!((layer.size.0, layer.size.1), (24, 16));
+        let ch = |name: &str| &layer.channel_data.list.iter().find(|c| c.name.to_string() == name).unwrap_or_else(|| panic!("no channel {name}")).sample_data;
+        let f = |name: &str| match ch(name) {
+            FlatSamples::F32(v) => v.clone(),
+            _ => panic!("{name} is not f32"),
+        };
+        let ids = match ch("id") {
+            FlatSamples::U32(v) => v.clone(),
+            _ => panic!("id is not u32"),
+        };
+        let (r, depth, nx, ny, nz, ar) = (f("R"), f("depth.Z"), f("normal.X"), f("normal.Y"), f("normal.Z"), f("albedo.R"));
+        let mut hits = 0;
+        for (i, h) in img.hits.iter().enumerate() {
+            assert_eq!(r[i], img.radiance[i][0]);
+            if !h.is_hit() {
+                assert_eq!(ids[i], u32::MAX);
+                assert!(depth[i].is_infinite());
+                continue;
+            }
+            hits += 1;
+            assert_eq!(ids[i], h.prim);
+            let tri = &scene.triangles[h.prim as usize];
+            assert_eq!(ar[i], scene.materials[tri.material as usize].diffuse[0]);
+            let len = (nx[i] * nx[i] + ny[i] * ny[i] + nz[i] * nz[i]).sqrt();
+            assert!((len - 1.0).abs() < 1e-5, "unit normal: {len}");
+            let b0 = 1.0 - h.b1 - h.b2;
+            let p: Vec<f32> = (0..3).map(|k| tri.v0[k] * b0 + tri.v1[k] * h.b1 + tri.v2[k] * h.b2).collect();
+            let to_eye: Vec<f32> = (0..3).map(|k| cam.origin[k] - p[k]).collect();
+            let dist = (to_eye[0] * to_eye[0] + to_eye[1] * to_eye[1] + to_eye[2] * to_eye[2]).sqrt();
+            assert!((depth[i] - dist).abs() <= 1e-4 * dist && depth[i] > 500.0, "depth {} against {dist}", depth[i]);
+            assert!(nx[i] * to_eye[0] + ny[i] * to_eye[1] + nz[i] * to_eye[2] > 0.0);
+        }
+        assert!(hits > 200, "{hits} of {} pixels hit", img.hits.len());
+        std::fs::remove_dir_all(&dir).ok();
     }
 }

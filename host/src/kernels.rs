@@ -34,8 +34,11 @@ impl QueryKind for AnyHit {
 
 /// The scene as the ray-query kernels bind it.
 pub struct SceneBinds<'a> {
+    /// The triangles.
     pub tris: &'a Buffer<Triangle>,
+    /// The kd-tree's nodes (`nodes[0]` is the root).
     pub nodes: &'a Buffer<KdNode>,
+    /// The primitive index list: each leaf holds a range of it, each entry an index into `tris`.
     pub prims: &'a Buffer<u32>,
 }
 
@@ -59,16 +62,24 @@ type TraceFn<'s, O> = fn(u32, &TraceParams, &[Ray], &KdTree, &mut HostStore<'s, 
 /// How a trace kernel finds hits: brute force, or a kd traversal one ray per thread, or four.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub enum TraceMethod {
+    /// Every triangle for every ray (the tree is not used).
     Brute,
+    /// Kd traversal of the given algorithm, one ray per thread.
     Single(kdray_shared::kdtree::Algorithm),
+    /// The packet form of the given kd traversal: four rays per thread, traversed together where
+    /// their direction signs agree, else one by one.
     Packet(kdray_shared::kdtree::Algorithm),
 }
 
 /// Closest-hit or any-hit queries for `params.count` rays (`trace::trace` / `trace::trace_packet`).
 pub struct Trace<'a, Q: QueryKind> {
+    /// Ray count (`count`) and scene box.
     pub params: TraceParams,
+    /// The rays to trace, one per work item (four per work item for packets).
     pub rays: &'a Buffer<Ray>,
+    /// The scene the rays are traced against.
     pub scene: SceneBinds<'a>,
+    /// Written: each ray's answer (`Hit` for closest hit, 1/0 for any hit).
     pub out: &'a Buffer<Q::Out>,
     entry: String,
     packet: bool,
@@ -88,6 +99,8 @@ impl<'s, Q: QueryKind> WithTraversal for Pick<'s, Q> {
 }
 
 impl<'a, Q: QueryKind> Trace<'a, Q> {
+    /// The kernel for query `Q` found by `method`: entry point `<Q::PREFIX>_<method.suffix()>`
+    /// (e.g. `closest_stack`) and the matching native function.
     pub fn new(method: TraceMethod, params: TraceParams, rays: &'a Buffer<Ray>, scene: SceneBinds<'a>, out: &'a Buffer<Q::Out>) -> Self {
         use kdray_shared::kdtree::with_traversal;
         let (packet, cpu): (bool, TraceFn<'a, Q::Out>) = match method {
@@ -156,10 +169,16 @@ impl<Q: QueryKind> Kernel for Trace<'_, Q> {
 
 /// Decomposed pipeline, step 1: leaf lists (`trace::traverse_leaves`).
 pub struct TraverseLeaves<'a> {
+    /// Ray count, leaf-list capacity (`leaf_capacity`) and scene box.
     pub params: TraceParams,
+    /// The rays, one per work item.
     pub rays: &'a Buffer<Ray>,
+    /// The scene the rays traverse.
     pub scene: SceneBinds<'a>,
+    /// Written: each ray's non-empty leaves in traversal order, `params.leaf_capacity` entries
+    /// per ray (ray i's from `i · leaf_capacity`).
     pub lists: &'a Buffer<LeafRef>,
+    /// Written: each ray's entry count, plus `LEAF_OVERFLOW` if its list is incomplete.
     pub status: &'a Buffer<u32>,
 }
 
@@ -191,11 +210,18 @@ impl Kernel for TraverseLeaves<'_> {
 
 /// Decomposed pipeline, step 2: the listed leaves (`trace::intersect_listed`).
 pub struct IntersectListed<'a, Q: QueryKind> {
+    /// Ray count, leaf-list capacity and scene box (as for `TraverseLeaves`).
     pub params: TraceParams,
+    /// The rays, one per work item.
     pub rays: &'a Buffer<Ray>,
+    /// The scene whose listed leaves are tested.
     pub scene: SceneBinds<'a>,
+    /// The leaf lists `TraverseLeaves` wrote.
     pub lists: &'a Buffer<LeafRef>,
+    /// Read and written: `TraverseLeaves`' status in; out 1 where the list overflowed without
+    /// settling the query (for `Fallback`), else 0.
     pub status: &'a Buffer<u32>,
+    /// Written: each ray's answer (`Hit` or 1/0) over its listed leaves.
     pub out: &'a Buffer<Q::Out>,
 }
 
@@ -227,10 +253,16 @@ impl<Q: QueryKind> Kernel for IntersectListed<'_, Q> {
 
 /// Decomposed pipeline, step 3: rays whose list overflowed unsettled (`trace::fallback`).
 pub struct Fallback<'a, Q: QueryKind> {
+    /// Ray count and scene box.
     pub params: TraceParams,
+    /// The rays, one per work item.
     pub rays: &'a Buffer<Ray>,
+    /// The scene the rays are traced against again.
     pub scene: SceneBinds<'a>,
+    /// The statuses `IntersectListed` left: non-zero for the rays to trace again.
     pub status: &'a Buffer<u32>,
+    /// Written: the answer of each ray traced again (full-stack traversal); other rays' answers
+    /// are left as they are.
     pub out: &'a Buffer<Q::Out>,
 }
 
@@ -262,8 +294,11 @@ impl<Q: QueryKind> Kernel for Fallback<'_, Q> {
 
 /// Primary rays and fresh paths (`render::camera_rays`).
 pub struct CameraRays<'a> {
+    /// The batch (`count` paths from `first`), camera, seed and flags.
     pub params: RenderParams,
+    /// Written: each path's primary ray.
     pub rays: &'a Buffer<Ray>,
+    /// Written: each path's fresh state.
     pub paths: &'a Buffer<PathState>,
 }
 
@@ -291,14 +326,24 @@ impl Kernel for CameraRays<'_> {
 
 /// One bounce of every path: reflect or shade (`render::path_step`).
 pub struct PathStep<'a> {
+    /// The batch and the bounce being shaded (`bounce`).
     pub params: RenderParams,
+    /// Read and written: each active path's ray; replaced by its next ray, its gather point, or no ray
+    /// when the path ends.
     pub rays: &'a Buffer<Ray>,
+    /// The scene's triangles.
     pub tris: &'a Buffer<Triangle>,
+    /// Each path's closest hit at this bounce.
     pub hits: &'a Buffer<Hit>,
+    /// The materials (`Triangle::material` indexes them).
     pub materials: &'a Buffer<Material>,
+    /// The lights to sample (`params.light_count` of them).
     pub lights: &'a Buffer<Light>,
+    /// Read and written: each path's state.
     pub paths: &'a Buffer<PathState>,
+    /// Written: each path's shadow ray (no ray if none).
     pub shadow_rays: &'a Buffer<Ray>,
+    /// Written: each path's shaded terms, to add once the shadow ray's answer is known.
     pub terms: &'a Buffer<ShadeTerms>,
 }
 
@@ -346,9 +391,13 @@ impl Kernel for PathStep<'_> {
 
 /// Adds the shaded terms of every path (`render::accumulate`).
 pub struct Accumulate<'a> {
+    /// The batch (`count` paths).
     pub params: RenderParams,
+    /// Each path's shaded terms (`PathStep`).
     pub terms: &'a Buffer<ShadeTerms>,
+    /// Each shadow ray's any-hit answer: non-zero if blocked.
     pub occluded: &'a Buffer<u32>,
+    /// Read and written: each path's state; its radiance gains `base`, plus `direct` unless occluded.
     pub paths: &'a Buffer<PathState>,
 }
 
@@ -376,8 +425,12 @@ impl Kernel for Accumulate<'_> {
 
 /// Adds every path's radiance to the film (`render::film`).
 pub struct Film<'a> {
+    /// The batch: pixels, samples per pixel, and the sample group (`sample`: 0 writes the film,
+    /// later groups add to it).
     pub params: RenderParams,
+    /// The batch's paths: sample s of pixel i at `s · pixels + i`.
     pub paths: &'a Buffer<PathState>,
+    /// Written: each pixel's radiance sum (RGB) and, fourth, its sample count.
     pub radiance: &'a Buffer<[f32; 4]>,
 }
 
@@ -403,11 +456,14 @@ impl Kernel for Film<'_> {
 
 /// Four numbers of each random stream (`render::rng_fill`).
 pub struct RngFill<'a> {
+    /// Items (`count`), first stream (`first`) and seed.
     pub params: ItemParams,
+    /// Written: four numbers of stream `first + i` for item i.
     pub out: &'a Buffer<[u32; 4]>,
 }
 
 impl<'a> RngFill<'a> {
+    /// `count` items: the streams `first..first + count` of `seed`.
     pub fn new(count: u32, first: u32, seed: u32, out: &'a Buffer<[u32; 4]>) -> Self {
         RngFill { params: ItemParams { count, first, seed, _pad: 0 }, out }
     }
@@ -437,8 +493,11 @@ impl Kernel for RngFill<'_> {
 
 /// Counting sort, pass 1: the histogram of keys (`sort::count_keys`).
 pub struct CountKeys<'a> {
+    /// Items (`count`) and cells (`cells`).
     pub params: SortParams,
+    /// Each item's key (cell).
     pub keys: &'a Buffer<u32>,
+    /// Added to atomically: items per key (keys ≥ `params.cells` are left out).
     pub counts: &'a Buffer<u32>,
 }
 
@@ -464,8 +523,11 @@ impl Kernel for CountKeys<'_> {
 
 /// Counting sort, pass 3: one step of the prefix sum over the chunk sums (`sort::scan_step`).
 pub struct ScanStep<'a> {
+    /// Elements (`cells`) and the step's distance (`step`; 0: copy).
     pub params: SortParams,
+    /// The scan so far.
     pub input: &'a Buffer<u32>,
+    /// Written: `input[i] + input[i − step]` (`input[i]` where `i < step`).
     pub output: &'a Buffer<u32>,
 }
 
@@ -491,8 +553,11 @@ impl Kernel for ScanStep<'_> {
 
 /// Counting sort, pass 2: the sums of chunks of counts (`sort::chunk_sums`).
 pub struct ChunkSums<'a> {
+    /// Cells (`cells`) whose counts are summed.
     pub params: SortParams,
+    /// Items per cell (`CountKeys`).
     pub counts: &'a Buffer<u32>,
+    /// Written: the sum of each chunk of `CHUNK` consecutive counts.
     pub sums: &'a Buffer<u32>,
 }
 
@@ -518,10 +583,15 @@ impl Kernel for ChunkSums<'_> {
 
 /// Counting sort, pass 4: cell offsets and scatter cursors (`sort::exclusive`).
 pub struct ExclusiveOffsets<'a> {
+    /// Cells (`cells`).
     pub params: SortParams,
+    /// Items per cell (`CountKeys`).
     pub counts: &'a Buffer<u32>,
+    /// The inclusive prefix sum of the chunk sums (`ScanStep`).
     pub inclusive: &'a Buffer<u32>,
+    /// Written: each cell's first slot (`cells + 1` entries; the last is every item counted).
     pub offsets: &'a Buffer<u32>,
+    /// Written: a copy of the offsets as scatter cursors (`cells` entries).
     pub cursor: &'a Buffer<u32>,
 }
 
@@ -549,9 +619,13 @@ impl Kernel for ExclusiveOffsets<'_> {
 
 /// Counting sort, pass 5: every item to its slot (`sort::scatter`).
 pub struct ScatterKeys<'a> {
+    /// Items (`count`) and cells (`cells`).
     pub params: SortParams,
+    /// Each item's key (cell).
     pub keys: &'a Buffer<u32>,
+    /// Read and written atomically: each cell's next free slot (`ExclusiveOffsets`).
     pub cursor: &'a Buffer<u32>,
+    /// Written: the item indices in key order.
     pub order: &'a Buffer<u32>,
 }
 
@@ -577,9 +651,14 @@ impl Kernel for ScatterKeys<'_> {
 
 /// Photons leave the lights (`photon::emit`).
 pub struct EmitPhotons<'a> {
+    /// The dispatch's photons (`count` from `first` of the pass), photons per pass (`emitted`),
+    /// seed, spread and light count.
     pub params: PhotonParams,
+    /// The lights to emit from (`params.light_count` of them).
     pub lights: &'a Buffer<Light>,
+    /// Written: each photon's ray.
     pub rays: &'a Buffer<Ray>,
+    /// Written: each photon's power and state.
     pub paths: &'a Buffer<PhotonPath>,
 }
 
@@ -605,13 +684,22 @@ impl Kernel for EmitPhotons<'_> {
 
 /// One bounce of every photon: store, continue or absorb (`photon::bounce`).
 pub struct PhotonBounce<'a> {
+    /// The dispatch's photons, the bounce (`bounce`), record capacity (`capacity`), seed and flags.
     pub params: PhotonParams,
+    /// Read and written: each active photon's ray; replaced by its next ray, or no ray when absorbed.
     pub rays: &'a Buffer<Ray>,
+    /// Each photon's closest hit at this bounce.
     pub hits: &'a Buffer<Hit>,
+    /// The scene's triangles.
     pub tris: &'a Buffer<Triangle>,
+    /// The materials (`Triangle::material` indexes them).
     pub materials: &'a Buffer<Material>,
+    /// Read and written: each photon's power and state.
     pub paths: &'a Buffer<PhotonPath>,
+    /// Written: the stored photon records, each in a slot taken from `counter`.
     pub photons: &'a Buffer<Photon>,
+    /// Added to atomically: `counter[0]` counts every photon to store, including those past
+    /// `params.capacity` (which are not stored).
     pub counter: &'a Buffer<u32>,
 }
 
@@ -660,8 +748,15 @@ impl Kernel for PhotonBounce<'_> {
 /// leaves (its nodes and per-node cell table).
 #[derive(Copy, Clone)]
 pub enum IndexBinds<'a> {
+    /// The hashed uniform grid (no buffers).
     Grid,
-    Kd { nodes: &'a Buffer<kdray_shared::kdtree::KdNode>, leaves: &'a Buffer<LeafCells> },
+    /// The geometry kd-tree's leaves, subdivided into cells.
+    Kd {
+        /// The geometry kd-tree's nodes.
+        nodes: &'a Buffer<kdray_shared::kdtree::KdNode>,
+        /// Each node's cells, indexed like `nodes` (interior nodes' have `dims` 0).
+        leaves: &'a Buffer<LeafCells>,
+    },
 }
 
 impl<'a> IndexBinds<'a> {
@@ -681,10 +776,16 @@ impl<'a> IndexBinds<'a> {
 
 /// The cell of every stored photon (`photon::keys`).
 pub struct PhotonKeys<'a> {
+    /// Photon slots (`count`), cells per map, maps, gather radii and scene box.
     pub params: IndexParams,
+    /// The photon index whose cells the keys name.
     pub index: IndexBinds<'a>,
+    /// The stored photon records.
     pub photons: &'a Buffer<Photon>,
+    /// `counter[0]`: photons to store (`PhotonBounce`); slots from `min(counter[0], count)` on
+    /// are empty.
     pub counter: &'a Buffer<u32>,
+    /// Written: each slot's cell (`NO_CELL` for empty slots).
     pub keys: &'a Buffer<u32>,
 }
 
@@ -722,10 +823,15 @@ impl Kernel for PhotonKeys<'_> {
 
 /// The stored photons in cell order (`photon::permute`).
 pub struct PermutePhotons<'a> {
+    /// Photon slots (`count`), cells per map and maps.
     pub params: IndexParams,
+    /// The stored photon records.
     pub photons: &'a Buffer<Photon>,
+    /// Record indices in cell order (`ScatterKeys`).
     pub order: &'a Buffer<u32>,
+    /// Cell offsets into `order`; `offsets[cells · maps]` photons were placed.
     pub offsets: &'a Buffer<u32>,
+    /// Written: the placed records in cell order.
     pub sorted: &'a Buffer<Photon>,
 }
 
@@ -752,11 +858,17 @@ impl Kernel for PermutePhotons<'_> {
 /// The photon-map estimate at every gather point, added to the path's radiance
 /// (`photon::gather`).
 pub struct Gather<'a> {
+    /// Paths (`count`), cells per map, maps, gather radii, filter and scene box.
     pub params: IndexParams,
+    /// The photon index whose cells are searched.
     pub index: IndexBinds<'a>,
+    /// Each path's ray slot; at a gather point, the point (origin) and its normal (direction).
     pub rays: &'a Buffer<Ray>,
+    /// The photon records in cell order (`PermutePhotons`).
     pub photons: &'a Buffer<Photon>,
+    /// Cell offsets into `photons` (`offsets[c]..offsets[c + 1]` are cell c's).
     pub offsets: &'a Buffer<u32>,
+    /// Read and written: each path's state; a path at a gather point gains the photons' radiance.
     pub paths: &'a Buffer<PathState>,
 }
 
@@ -805,11 +917,19 @@ impl<'s> WithTraversal for PickPhotons<'s> {
 /// Whole photon paths, emission to absorption, one photon per thread (`photon::trace_photon`):
 /// brute force or a kd traversal, one ray at a time.
 pub struct TracePhotons<'a> {
+    /// The dispatch's photons, photons per pass, seed, lights, bounce limit, record capacity and
+    /// scene box.
     pub params: PhotonParams,
+    /// The lights to emit from (`params.light_count` of them).
     pub lights: &'a Buffer<Light>,
+    /// The scene the photons are traced against.
     pub scene: SceneBinds<'a>,
+    /// The materials (`Triangle::material` indexes them).
     pub materials: &'a Buffer<Material>,
+    /// Written: the stored photon records, each in a slot taken from `counter`.
     pub photons: &'a Buffer<Photon>,
+    /// Added to atomically: `counter[0]` counts every photon to store, including those past
+    /// `params.capacity` (which are not stored).
     pub counter: &'a Buffer<u32>,
     entry: String,
     cpu: PhotonFn<'a>,
@@ -889,14 +1009,21 @@ impl<'s> WithTraversal for PickPaths<'s> {
 /// Whole eye paths, camera to end, one pixel sample per thread (`render::trace_path`): brute
 /// force or a kd traversal, one ray at a time.
 pub struct TracePaths<'a> {
+    /// The batch, camera, seed, lights, bounce limits and flags.
     pub params: RenderParams,
     /// The traversals' root box: min, max (`[f32; 4]` each).
     pub scene_box: &'a Buffer<[f32; 4]>,
+    /// The scene the paths are traced against.
     pub scene: SceneBinds<'a>,
+    /// The materials (`Triangle::material` indexes them).
     pub materials: &'a Buffer<Material>,
+    /// The lights to sample (`params.light_count` of them).
     pub lights: &'a Buffer<Light>,
+    /// Written: each path's last ray (its gather point, if it ended at one).
     pub rays: &'a Buffer<Ray>,
+    /// Written: each path's final state.
     pub paths: &'a Buffer<PathState>,
+    /// Written: each path's closest hit at bounce 0.
     pub primary_hits: &'a Buffer<Hit>,
     entry: String,
     cpu: PathFn<'a>,

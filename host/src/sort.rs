@@ -19,6 +19,7 @@ pub struct CountingSort<'r> {
 }
 
 impl<'r> CountingSort<'r> {
+    /// Working buffers on `rt` for keys 0..`cells`; `cells` must be 1 to 2^32 - 2.
     pub fn new(rt: &'r dyn Runtime, cells: u32) -> Result<Self> {
         if cells == 0 || cells == u32::MAX {
             bail!(TooLarge: "a counting sort needs 1 to 2^32 - 2 cells, not {cells}");

@@ -24,21 +24,38 @@ const NATIVE_BATCH: u64 = 1 << 18;
 pub enum AccelStructure {
     /// None: only brute force.
     Triangles,
-    KdTree { nodes: Buffer<KdNode>, prims: Buffer<u32>, bounds: Aabb },
+    /// The kd-tree's arrays (`KdTreeData`).
+    KdTree {
+        /// The tree's nodes.
+        nodes: Buffer<KdNode>,
+        /// The leaves' triangle indices.
+        prims: Buffer<u32>,
+        /// The tree's root cell.
+        bounds: Aabb,
+    },
 }
 
 /// The decomposed pipeline's per-batch buffers: leaf lists (`capacity` entries per ray) and
 /// one status word per ray.
 pub struct LeafLists {
+    /// Each ray's non-empty leaves in traversal order: ray i's `capacity` entries start at `i * capacity`.
     pub lists: Buffer<LeafRef>,
+    /// Per ray: the number of entries, with `LEAF_OVERFLOW` set if the list overflowed.
     pub status: Buffer<u32>,
 }
 
+/// A scene's buffers and acceleration structure on one runtime, and the closest-hit and
+/// any-hit queries over them.
 pub struct Tracer<'r> {
+    /// The runtime that holds the buffers and runs the passes.
     pub rt: &'r dyn Runtime,
+    /// The scene's triangles, in `Scene::triangles` order (`Hit::prim` indexes them).
     pub tris: Buffer<Triangle>,
+    /// The scene's materials.
     pub materials: Buffer<Material>,
+    /// `Scene::lights` (one zeroed entry if there are none: see `light_count`).
     pub lights: Buffer<Light>,
+    /// A kd-tree if `new` was given one, else only brute force.
     pub structure: AccelStructure,
     /// The traversals' root box (min, max; `trace_bounds`) for the whole-path kernels.
     pub scene_box: Buffer<[f32; 4]>,
@@ -46,6 +63,7 @@ pub struct Tracer<'r> {
     no_nodes: Buffer<KdNode>,
     no_prims: Buffer<u32>,
     scene_bounds: Aabb,
+    /// Number of lights in `lights`.
     pub light_count: u32,
     /// Any mirror or glass: only then are specular bounces traced.
     pub has_specular: bool,
@@ -99,6 +117,7 @@ impl<'r> Tracer<'r> {
         (self.scene_bounds.min, self.scene_bounds.max)
     }
 
+    /// The runtime's name, for reports.
     pub fn device_name(&self) -> String {
         self.rt.name()
     }
@@ -260,10 +279,14 @@ impl<'r> Tracer<'r> {
         self.rt.alloc::<T>(label, n)
     }
 
+    /// The closest hit of each ray in its interval (`Hit::NONE` for a miss), found with
+    /// `accel`; fails if `accel` needs a kd-tree and none was built.
     pub fn closest_hits(&self, accel: Accel, rays: &[Ray]) -> Result<Vec<Hit>> {
         self.query::<Closest>(accel, rays)
     }
 
+    /// Whether each ray hits any triangle in its interval, found with `accel`; fails if
+    /// `accel` needs a kd-tree and none was built.
     pub fn any_hits(&self, accel: Accel, rays: &[Ray]) -> Result<Vec<bool>> {
         Ok(self.query::<AnyHit>(accel, rays)?.into_iter().map(|o| o != 0).collect())
     }

@@ -6,9 +6,12 @@
 //! widened by 2γ(3) as in pbrt so rounding never loses a hit on the box boundary.
 use crate::math::gamma;
 
+/// An axis-aligned box given by its minimum and maximum corners.
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct Aabb {
+    /// Minimum corner.
     pub min: [f32; 3],
+    /// Maximum corner.
     pub max: [f32; 3],
 }
 

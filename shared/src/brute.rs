@@ -5,6 +5,8 @@ use crate::pod::{Hit, Triangle};
 use crate::ray::Ray;
 use crate::triangle::{intersect_triangle, ShearedRay};
 
+/// The closest hit of `ray` among all of `tris` (`Hit::NONE` if none, or if the ray is
+/// invalid); ties in t keep the lower index.
 #[inline(always)]
 pub fn closest_hit(ray: &Ray, tris: &[Triangle]) -> Hit {
     let mut best = Hit::NONE;
@@ -28,6 +30,7 @@ pub fn closest_hit(ray: &Ray, tris: &[Triangle]) -> Hit {
     best
 }
 
+/// Whether `ray` hits any of `tris` in its interval (`false` for an invalid ray).
 #[inline(always)]
 pub fn any_hit(ray: &Ray, tris: &[Triangle]) -> bool {
     let r = match ShearedRay::new(ray) {
@@ -48,6 +51,7 @@ pub fn any_hit(ray: &Ray, tris: &[Triangle]) -> bool {
 
 /// A hit query answered by the oracle (the brute-force kernels and the CPU runtime).
 pub trait BruteForce {
+    /// Answers the query for `ray` by testing every triangle of `tris`.
     fn brute(&mut self, ray: &Ray, tris: &[Triangle]);
 }
 impl BruteForce for Closest {

@@ -10,9 +10,13 @@
 
 /// Element access to a buffer that a kernel writes (and may read back at its own elements).
 pub trait Store<T: Copy> {
+    /// Element `i`.
     fn load(&self, i: usize) -> T;
+    /// Writes `v` to element `i`.
     fn store(&mut self, i: usize, v: T);
+    /// Number of elements.
     fn len(&self) -> usize;
+    /// Whether there are no elements.
     #[inline(always)]
     fn is_empty(&self) -> bool {
         self.len() == 0

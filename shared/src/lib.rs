@@ -1,7 +1,17 @@
 //! One source for CPU and GPU: everything here compiles natively and, through rust-gpu,
 //! to SPIR-V. Buffer types are `#[repr(C)]` + `Pod` built from `f32`/`u32` arrays only, so the
 //! byte layout is identical on both sides (no `Vec3` in buffers).
+//!
+//! ```
+//! use kdray_shared::{brute, Ray, Triangle};
+//! let tri = Triangle { v0: [0.0, 0.0, 0.0], v1: [1.0, 0.0, 0.0], v2: [0.0, 1.0, 0.0], material: 0, face: 7, _pad: 0 };
+//! // Watertight: a ray through the triangle's edge or vertex never slips through a closed mesh.
+//! let hit = brute::closest_hit(&Ray::new([0.25, 0.25, 1.0], [0.0, 0.0, -1.0], 0.0, f32::INFINITY), &[tri]);
+//! assert_eq!((hit.prim, hit.t), (0, 1.0));
+//! assert_eq!((hit.b1, hit.b2), (0.25, 0.25)); // barycentrics of v1 and v2
+//! ```
 #![no_std]
+#![warn(missing_docs)]
 // Fused multiply-add and square root: `core::f32::math` (a nightly feature) in the shader build,
 // `libm` on the host (hardware FMA and SSE square root where the CPU has them, both correctly
 // rounded), so the crate builds on stable Rust everywhere but in the shader build.

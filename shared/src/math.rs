@@ -2,6 +2,7 @@
 //! (GLSL.std.450 through rust-gpu). Fused multiply-add is used explicitly wherever the
 //! result must not depend on whether a compiler contracts `a * b + c`.
 
+/// Fused multiply-add `a * b + c` (`mul_add` in the shader build, `libm::fmaf` natively).
 #[inline(always)]
 pub fn fma(a: f32, b: f32, c: f32) -> f32 {
     #[cfg(target_arch = "spirv")]
@@ -10,6 +11,7 @@ pub fn fma(a: f32, b: f32, c: f32) -> f32 {
     return libm::fmaf(a, b, c);
 }
 
+/// Square root (`core::f32::math::sqrt` in the shader build, `libm::sqrtf` natively).
 #[inline(always)]
 pub fn sqrt(x: f32) -> f32 {
     #[cfg(target_arch = "spirv")]
@@ -47,6 +49,7 @@ pub const fn gamma(n: u32) -> f32 {
     e / (1.0 - e)
 }
 
+/// `a` if `c`, else `b`.
 #[inline(always)]
 pub fn select(c: bool, a: f32, b: f32) -> f32 {
     if c {
@@ -56,31 +59,37 @@ pub fn select(c: bool, a: f32, b: f32) -> f32 {
     }
 }
 
+/// Dot product.
 #[inline(always)]
 pub fn dot3(a: [f32; 3], b: [f32; 3]) -> f32 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
+/// Component-wise difference `a - b`.
 #[inline(always)]
 pub fn sub3(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
 
+/// Component-wise sum `a + b`.
 #[inline(always)]
 pub fn add3(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
     [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
 }
 
+/// `a` times the scalar `s`.
 #[inline(always)]
 pub fn scale3(a: [f32; 3], s: f32) -> [f32; 3] {
     [a[0] * s, a[1] * s, a[2] * s]
 }
 
+/// Component-wise product.
 #[inline(always)]
 pub fn mul3(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
     [a[0] * b[0], a[1] * b[1], a[2] * b[2]]
 }
 
+/// Cross product `a × b`.
 #[inline(always)]
 pub fn cross3(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
     [
@@ -90,11 +99,13 @@ pub fn cross3(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
     ]
 }
 
+/// Euclidean length.
 #[inline(always)]
 pub fn length3(a: [f32; 3]) -> f32 {
     sqrt(dot3(a, a))
 }
 
+/// `a` scaled to unit length (NaN for the zero vector).
 #[inline(always)]
 pub fn normalize3(a: [f32; 3]) -> [f32; 3] {
     scale3(a, 1.0 / length3(a))

@@ -76,6 +76,7 @@ pub fn encode_rgb9e5(c: [f32; 3], dither: f32) -> u32 {
     q(r) | (q(g) << 9) | (q(b) << 18) | ((shared as u32) << 27)
 }
 
+/// The colour of an RGB9E5 word (`encode_rgb9e5`).
 #[inline(always)]
 pub fn decode_rgb9e5(v: u32) -> [f32; 3] {
     let scale = exp2i((v >> 27) as i32 - 24);
@@ -97,6 +98,7 @@ pub fn encode_oct(n: [f32; 3], bits: u32) -> u32 {
     q(x) | (q(y) << bits)
 }
 
+/// The unit vector of an `encode_oct` word of 2 × `bits` bits.
 #[inline(always)]
 pub fn decode_oct(v: u32, bits: u32) -> [f32; 3] {
     let mask = (1u32 << bits) - 1;
@@ -119,6 +121,7 @@ impl Photon {
         let packed = encode_oct(n, 8) | (encode_oct(from, 7) << 16) | if caustic { CAUSTIC_BIT } else { 0 };
         Photon { position: p, power: encode_rgb9e5(power, dither), packed }
     }
+    /// The photon's power (RGB), decoded from RGB9E5.
     #[inline(always)]
     pub fn power(&self) -> [f32; 3] {
         decode_rgb9e5(self.power)
@@ -133,6 +136,7 @@ impl Photon {
     pub fn incoming(&self) -> [f32; 3] {
         decode_oct((self.packed >> 16) & 0x3fff, 7)
     }
+    /// Whether it is a caustic photon (`CAUSTIC_BIT`).
     #[inline(always)]
     pub fn is_caustic(&self) -> bool {
         self.packed & CAUSTIC_BIT != 0
@@ -345,6 +349,7 @@ pub fn trace_photon<M: Method, O: Store<Photon> + ?Sized, C: AtomicStore + ?Size
 /// offsets. (The photons are passed along rather than held: a mutable visitor holding storage
 /// buffer slices crashed NVIDIA's SPIR-V compiler, driver 580.)
 pub trait CellVisitor {
+    /// Visits cell `c`, whose photons are `photons[offsets[c]..offsets[c + 1]]`.
     fn cell(&mut self, c: u32, photons: &[Photon], offsets: &[u32]);
 }
 
@@ -360,12 +365,16 @@ pub trait PhotonIndex {
 /// (B) A hashed uniform grid of cell size 2r per map: `cells` buckets per map (a power of
 /// two); a disc of radius r overlaps at most 2 × 2 × 2 cells, buckets visited once each.
 pub struct HashGrid {
+    /// The scene box's minimum corner; cells are counted from one cell below it.
     pub origin: [f32; 3],
+    /// Buckets per map (a power of two).
     pub cells: u32,
+    /// Cell size of the global and the caustic map (twice each map's gather radius).
     pub cell_size: [f32; 2],
 }
 
 impl HashGrid {
+    /// The grid of `p`: origin `bounds_min`, `cells` buckets, cells twice each map's radius.
     #[inline(always)]
     pub fn new(p: &IndexParams) -> HashGrid {
         HashGrid { origin: p.bounds_min, cells: p.cells, cell_size: [2.0 * p.radius[0], 2.0 * p.radius[1]] }
@@ -423,8 +432,11 @@ impl PhotonIndex for HashGrid {
 /// of about the gather radius (`LeafCells`, one entry per node); a photon's leaf is found by
 /// point location from the root, a query's by walking the tree with the query box.
 pub struct KdCells<'a> {
+    /// The geometry kd-tree's nodes.
     pub nodes: &'a [KdNode],
+    /// Each node's cells, indexed like `nodes` (interior nodes' have `dims` 0).
     pub leaves: &'a [LeafCells],
+    /// Cells of one map; the caustic map's cells are numbered after the global map's.
     pub cells: u32,
 }
 

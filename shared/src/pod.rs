@@ -10,11 +10,17 @@ pub const MISS: u32 = u32::MAX;
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct Triangle {
+    /// First vertex.
     pub v0: [f32; 3],
+    /// Index into the material buffer.
     pub material: u32,
+    /// Second vertex.
     pub v1: [f32; 3],
+    /// Index of the face in the source mesh.
     pub face: u32,
+    /// Third vertex.
     pub v2: [f32; 3],
+    /// Padding to a 16-byte multiple.
     pub _pad: u32,
 }
 
@@ -22,14 +28,20 @@ pub struct Triangle {
 #[repr(C)]
 #[derive(Copy, Clone, Debug, PartialEq, Pod, Zeroable)]
 pub struct Hit {
+    /// Ray parameter of the hit (`origin + t·dir`); infinity for a miss.
     pub t: f32,
+    /// Index of the hit triangle, or `MISS`.
     pub prim: u32,
+    /// Barycentric weight of `v1`.
     pub b1: f32,
+    /// Barycentric weight of `v2`.
     pub b2: f32,
 }
 
 impl Hit {
+    /// No hit: `t` infinite, `prim` = `MISS`.
     pub const NONE: Hit = Hit { t: f32::INFINITY, prim: MISS, b1: 0.0, b2: 0.0 };
+    /// Whether a triangle was hit (`prim` is not `MISS`).
     #[inline(always)]
     pub fn is_hit(&self) -> bool {
         self.prim != MISS
@@ -42,15 +54,20 @@ impl Default for Hit {
     }
 }
 
+/// `Material::flags` bit: a perfect mirror (reflectance `diffuse`).
 pub const MAT_MIRROR: u32 = 1;
+/// `Material::flags` bit: a smooth dielectric that reflects or refracts (Fresnel, index `ior`).
 pub const MAT_GLASS: u32 = 2;
 
+/// A surface's material: Lambertian albedo, mirror / glass flags, emission, index of refraction.
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct Material {
+    /// Lambertian albedo (RGB); a mirror's reflectance.
     pub diffuse: [f32; 3],
     /// `MAT_MIRROR`, `MAT_GLASS` bits.
     pub flags: u32,
+    /// Radiance emitted from the triangle's front side (RGB).
     pub emission: [f32; 3],
     /// Index of refraction of a `MAT_GLASS` material (0: the default, 1.5).
     pub ior: f32,
@@ -68,8 +85,11 @@ impl Material {
     }
 }
 
+/// `Light::kind`: an emissive triangle (front side only).
 pub const LIGHT_TRIANGLE: u32 = 0;
+/// `Light::kind`: a point light, emitting equally in every direction.
 pub const LIGHT_POINT: u32 = 1;
+/// `Light::kind`: a spot light, a point light limited to a cone.
 pub const LIGHT_SPOT: u32 = 2;
 
 /// A light to sample for direct illumination and to emit photons from. Triangle lights: `p0`,
@@ -82,13 +102,22 @@ pub const LIGHT_SPOT: u32 = 2;
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct Light {
+    /// Triangle: its first vertex. Point and spot lights: the position.
     pub p0: [f32; 3],
+    /// `LIGHT_TRIANGLE`, `LIGHT_POINT` or `LIGHT_SPOT`.
     pub kind: u32,
+    /// Triangle: the edge v1 − v0. Spot light: the unit cone axis.
     pub e1: [f32; 3],
+    /// Running sum of the direct-light selection probabilities, up to and including this light.
     pub cdf: f32,
+    /// Triangle: the edge v2 − v0. Spot light: [cos of the cone's half angle, cos of the angle
+    /// where the falloff starts, 0].
     pub e2: [f32; 3],
+    /// Triangle: its area. Point and spot lights: unused (0).
     pub area: f32,
+    /// Triangle: emitted radiance (RGB). Point light: intensity. Spot light: intensity on the axis.
     pub emission: [f32; 3],
+    /// Running sum of the photon-emission selection probabilities (proportional to power).
     pub power_cdf: f32,
 }
 
@@ -96,14 +125,21 @@ pub struct Light {
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct Camera {
+    /// The eye: where every primary ray starts.
     pub origin: [f32; 3],
+    /// Image width in pixels.
     pub width: u32,
+    /// Direction from `origin` to the image's top-left corner (not normalised).
     pub top_left: [f32; 3],
+    /// Image height in pixels.
     pub height: u32,
+    /// Direction step from a pixel to its right neighbour.
     pub du: [f32; 3],
     /// The order in which pixels are traced: `ORDER_SCANLINE` or `ORDER_TILES`.
     pub order: u32,
+    /// Direction step from a pixel to the one below it.
     pub dv: [f32; 3],
+    /// Padding to a 16-byte multiple.
     pub _pad1: u32,
 }
 
@@ -123,10 +159,15 @@ pub struct TraceParams {
     pub count: u32,
     /// Entries per ray of the decomposed pipeline's leaf lists.
     pub leaf_capacity: u32,
+    /// Padding: aligns `bounds_min` to 16 bytes.
     pub _pad: [u32; 2],
+    /// Minimum corner of the scene box.
     pub bounds_min: [f32; 3],
+    /// Padding: aligns `bounds_max` to 16 bytes.
     pub _pad1: u32,
+    /// Maximum corner of the scene box.
     pub bounds_max: [f32; 3],
+    /// Padding to a 16-byte multiple.
     pub _pad2: u32,
 }
 
@@ -147,6 +188,7 @@ pub struct RenderParams {
     pub first: u32,
     /// Random stream of this sample (each sample of a pixel has its own).
     pub seed: u32,
+    /// Lights in the light buffer.
     pub light_count: u32,
     /// Which bounce of the paths this dispatch shades (0 = primary hits).
     pub bounce: u32,
@@ -156,12 +198,14 @@ pub struct RenderParams {
     pub diffuse_bounces: u32,
     /// `RENDER_*` bits.
     pub flags: u32,
+    /// The camera the primary rays come from.
     pub camera: Camera,
     /// Which group of samples this is (0 writes the film, later ones add to it).
     pub sample: u32,
     /// Samples per pixel in this dispatch: `count` = pixels × `samples`, path i being sample
     /// i / pixels of pixel i % pixels (0 counts as 1).
     pub samples: u32,
+    /// Padding to a 16-byte multiple.
     pub _pad: [u32; 2],
 }
 
@@ -187,9 +231,13 @@ impl RenderParams {
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct SortParams {
+    /// Items to sort (keys).
     pub count: u32,
+    /// Cells: keys below it are sorted, others left out. For `scan_step`, the elements scanned.
     pub cells: u32,
+    /// Distance of a `scan_step` (0: copy).
     pub step: u32,
+    /// Padding to 16 bytes.
     pub _pad: u32,
 }
 
@@ -197,9 +245,13 @@ pub struct SortParams {
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct ItemParams {
+    /// Items in this dispatch.
     pub count: u32,
+    /// Index of the dispatch's first item.
     pub first: u32,
+    /// Seed of the random streams.
     pub seed: u32,
+    /// Padding to 16 bytes.
     pub _pad: u32,
 }
 
@@ -208,9 +260,14 @@ pub struct ItemParams {
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct ShadeTerms {
+    /// Radiance reaching the eye whatever the shadow ray finds (emission hit), times the path's
+    /// throughput (RGB).
     pub base: [f32; 3],
+    /// Padding: aligns `direct` to 16 bytes.
     pub _pad0: u32,
+    /// Direct light the shadow ray brings if unoccluded, times the path's throughput (RGB).
     pub direct: [f32; 3],
+    /// Padding to a 16-byte multiple.
     pub _pad1: u32,
 }
 
@@ -229,8 +286,11 @@ pub const PATH_DIFFUSE_SHIFT: u32 = 8;
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct PathState {
+    /// RGB factor on the radiance that the path's next hit sends back along it.
     pub throughput: [f32; 3],
+    /// `PATH_*` bits; the diffuse bounces so far from `PATH_DIFFUSE_SHIFT` up.
     pub flags: u32,
+    /// Radiance gathered so far (RGB).
     pub radiance: [f32; 3],
     /// The path's random stream: its pixel, plus the sample within the dispatch times the
     /// image's pixel count.
@@ -238,9 +298,12 @@ pub struct PathState {
 }
 
 impl PathState {
+    /// A new path of random stream `pixel`: throughput 1, active and specular (the camera), no
+    /// radiance.
     pub const fn start(pixel: u32) -> PathState {
         PathState { throughput: [1.0; 3], flags: PATH_ACTIVE | PATH_SPECULAR, radiance: [0.0; 3], pixel }
     }
+    /// Whether the path continues (`PATH_ACTIVE`).
     #[inline(always)]
     pub fn is_active(&self) -> bool {
         self.flags & PATH_ACTIVE != 0
@@ -264,9 +327,11 @@ pub struct PhotonParams {
     pub emitted: u32,
     /// Random stream of the pass (a function of the render's seed and the pass index only).
     pub seed: u32,
+    /// Lights in the light buffer.
     pub light_count: u32,
     /// Which bounce this dispatch handles (0: hits of emitted photons).
     pub bounce: u32,
+    /// The last bounce: a photon is still stored there (at a diffuse surface) but not continued.
     pub max_bounces: u32,
     /// `PHOTON_*` bits.
     pub flags: u32,
@@ -278,11 +343,15 @@ pub struct PhotonParams {
     pub spread: f32,
     /// The specular materials' photons go to the caustic map (1) or the global one (0).
     pub caustic_map: u32,
+    /// Padding: aligns `bounds_min` to 16 bytes.
     pub _pad: u32,
     /// The scene box (the kd-tree's root cell) for `photon::trace_photon`.
     pub bounds_min: [f32; 3],
+    /// Padding: aligns `bounds_max` to 16 bytes.
     pub _pad1: u32,
+    /// Maximum corner of the scene box.
     pub bounds_max: [f32; 3],
+    /// Padding to a 16-byte multiple.
     pub _pad2: u32,
 }
 
@@ -295,7 +364,9 @@ pub const PHOTON_SPECULAR_ONLY: u32 = 2;
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct PhotonPath {
+    /// Power carried (RGB, watts).
     pub power: [f32; 3],
+    /// `PHOTON_*` bits.
     pub flags: u32,
 }
 
@@ -306,8 +377,11 @@ pub struct PhotonPath {
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct Photon {
+    /// Where the photon landed.
     pub position: [f32; 3],
+    /// Power (RGB) as RGB9E5 (`photon::encode_rgb9e5`).
     pub power: u32,
+    /// Normal, incoming direction and caustic bit (layout in the struct's description).
     pub packed: u32,
 }
 
@@ -339,11 +413,15 @@ pub struct IndexParams {
     pub radius: [f32; 2],
     /// `FILTER_*`.
     pub filter: u32,
+    /// Padding: aligns `bounds_min` to 16 bytes.
     pub _pad: u32,
     /// The scene box (the grid's origin, the kd-tree's root cell).
     pub bounds_min: [f32; 3],
+    /// Padding: aligns `bounds_max` to 16 bytes.
     pub _pad0: u32,
+    /// Maximum corner of the scene box.
     pub bounds_max: [f32; 3],
+    /// Padding to a 16-byte multiple.
     pub _pad1: u32,
 }
 
@@ -353,8 +431,12 @@ pub struct IndexParams {
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct LeafCells {
+    /// Minimum corner of the leaf's box.
     pub lo: [f32; 3],
+    /// Number of the leaf's first cell in a map; its cells follow, x fastest, then y, then z.
     pub base: u32,
+    /// Maximum corner of the leaf's box.
     pub hi: [f32; 3],
+    /// Cells along x, y and z: nx | ny << 10 | nz << 20 (0 for interior nodes).
     pub dims: u32,
 }

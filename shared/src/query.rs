@@ -12,7 +12,9 @@ use crate::triangle::{intersect_triangle, ShearedRay};
 /// and the triangles those indices name.
 #[derive(Copy, Clone)]
 pub struct Prims<'a> {
+    /// The primitive index list.
     pub index: &'a [u32],
+    /// The triangles the indices name.
     pub tris: &'a [Triangle],
 }
 
@@ -57,8 +59,12 @@ impl<Q: Query> Visitor for Q {
     }
 }
 
+/// Closest-hit query: the nearest hit in the ray's interval (ties keep the lower primitive
+/// index).
 pub struct Closest {
+    /// Best hit so far (`Hit::NONE` if none).
     pub hit: Hit,
+    /// End of the interval still searched: the best hit's `t`, or the ray's `t_max`.
     pub t_max: f32,
 }
 
@@ -88,8 +94,11 @@ impl Query for Closest {
     }
 }
 
+/// Any-hit query: whether the ray hits any triangle in its interval.
 pub struct AnyHit {
+    /// Whether a hit was found.
     pub found: bool,
+    /// End of the ray's interval.
     pub t_max: f32,
 }
 
@@ -117,7 +126,9 @@ impl Query for AnyHit {
 
 /// What a query stores per ray in a result buffer: the hit (closest hit) or 1/0 (any hit).
 pub trait Answer {
+    /// The value stored per ray.
     type Out: Copy;
+    /// The query's answer, as stored in the result buffer.
     fn answer(&self) -> Self::Out;
 }
 impl Answer for Closest {

@@ -7,13 +7,18 @@ use bytemuck::{Pod, Zeroable};
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct Ray {
+    /// Start point.
     pub origin: [f32; 3],
+    /// Start of the parametric interval.
     pub t_min: f32,
+    /// Direction (need not be normalised).
     pub dir: [f32; 3],
+    /// End of the parametric interval (may be +inf).
     pub t_max: f32,
 }
 
 impl Ray {
+    /// The ray `origin + t·dir` for t in [`t_min`, `t_max`].
     pub fn new(origin: [f32; 3], dir: [f32; 3], t_min: f32, t_max: f32) -> Self {
         Self { origin, t_min, dir, t_max }
     }
@@ -37,6 +42,7 @@ impl Ray {
             && self.t_min <= self.t_max
     }
 
+    /// The point at parameter `t`: `origin + t·dir`.
     #[inline(always)]
     pub fn at(&self, t: f32) -> [f32; 3] {
         crate::math::add3(self.origin, crate::math::scale3(self.dir, t))

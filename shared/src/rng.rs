@@ -3,6 +3,7 @@
 //! Built on the PCG-RXS-M-XS 32-bit hash (Jarzynski & Olano, JCGT 9(3), 2020), u32 only, so no
 //! Int64 capability is needed on the GPU.
 
+/// The PCG-RXS-M-XS 32-bit hash of `v`.
 #[inline(always)]
 pub fn pcg_hash(v: u32) -> u32 {
     let state = v.wrapping_mul(747_796_405).wrapping_add(2_891_336_453);
@@ -10,6 +11,7 @@ pub fn pcg_hash(v: u32) -> u32 {
     (word >> 22) ^ word
 }
 
+/// A random stream: number n is `pcg_hash(key + n·0x9E3779B9)`, the key a hash of (seed, index).
 #[derive(Copy, Clone, Debug)]
 pub struct Rng {
     key: u32,
@@ -23,6 +25,7 @@ impl Rng {
         Self { key: pcg_hash(index ^ pcg_hash(seed)), counter: 0 }
     }
 
+    /// The stream's next number.
     #[inline(always)]
     pub fn next_u32(&mut self) -> u32 {
         let x = pcg_hash(self.key.wrapping_add(self.counter.wrapping_mul(0x9E37_79B9)));

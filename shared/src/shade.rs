@@ -23,6 +23,7 @@ use crate::pod::{
 use crate::ray::Ray;
 use crate::rng::Rng;
 
+/// 1/π: the Lambertian BRDF per unit albedo.
 pub const INV_PI: f32 = core::f32::consts::FRAC_1_PI;
 /// Shadow rays stop this fraction short of the light point so they never hit the light itself.
 pub const SHADOW_END: f32 = 1.0 - 1.0 / 4096.0;

@@ -6,7 +6,7 @@
 //! 3. `scan_step`, ⌈log2 chunks⌉ times (Hillis & Steele): an inclusive prefix sum of the chunk
 //!    sums, `out[i] = in[i] + in[i − d]` for d = 1, 2, 4, …, ping-ponging between two buffers
 //!    (over cells / 32 elements: 5 dispatches fewer and 32× less traffic than over the cells);
-//! 4. `exclusive`: `offsets[c]` = items with a smaller key (offsets[cells] = all counted) — the
+//! 4. `exclusive`: `offsets[c]` = items with a smaller key (`offsets[cells]` = all counted) — the
 //!    chunks before c's plus the counts before c in its chunk — and a copy of it as the scatter
 //!    cursors;
 //! 5. `scatter`: item i goes to `order[cursor[key[i]]++]` (atomic).
@@ -26,6 +26,7 @@ pub fn chunks(cells: u32) -> u32 {
     cells.div_ceil(CHUNK)
 }
 
+/// Pass 1: item `i` adds 1 to its key's count (keys ≥ `p.cells` are left out).
 #[inline(always)]
 pub fn count_keys<C: AtomicStore + ?Sized>(i: u32, p: &SortParams, keys: &[u32], counts: &mut C) {
     if i < p.count {
@@ -89,6 +90,8 @@ pub fn exclusive<O: Store<u32> + ?Sized, C: Store<u32> + ?Sized>(
     }
 }
 
+/// Pass 5: item `i` takes the next slot of its key's cursor and writes its index there (keys
+/// ≥ `p.cells` are left out).
 #[inline(always)]
 pub fn scatter<C: AtomicStore + ?Sized, O: Store<u32> + ?Sized>(i: u32, p: &SortParams, keys: &[u32], cursor: &mut C, order: &mut O) {
     if i < p.count {

@@ -5,12 +5,17 @@ use bytemuck::{Pod, Zeroable};
 
 /// Traversal cost counters; `NoStats` compiles to nothing.
 pub trait Stats {
+    /// A node visited (interior or leaf).
     fn node(&mut self);
+    /// A leaf visited.
     fn leaf(&mut self);
+    /// A triangle tested.
     fn tri(&mut self);
+    /// A restart.
     fn restart(&mut self);
 }
 
+/// Counts nothing.
 pub struct NoStats;
 impl Stats for NoStats {
     #[inline(always)]
@@ -28,9 +33,13 @@ impl Stats for NoStats {
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
 pub struct Counters {
+    /// Nodes visited, interior and leaf.
     pub nodes: u32,
+    /// Leaves visited.
     pub leaves: u32,
+    /// Triangles tested.
     pub tris: u32,
+    /// Restarts.
     pub restarts: u32,
 }
 impl Stats for Counters {

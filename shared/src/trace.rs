@@ -15,6 +15,8 @@ use core::marker::PhantomData;
 
 /// How one ray's query is answered over the scene.
 pub trait Method {
+    /// Answers `q` for `ray` over the scene `tree` (the brute-force method uses only its
+    /// triangles).
     fn find<Q: Query + BruteForce>(tree: &KdTree, ray: &Ray, q: &mut Q);
 }
 

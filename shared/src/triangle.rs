@@ -22,14 +22,21 @@ use crate::ray::Ray;
 /// Per-ray constants of the test, computed once per ray.
 #[derive(Copy, Clone, Debug, Default)]
 pub struct ShearedRay {
+    /// The ray's origin.
     pub origin: [f32; 3],
+    /// Axis that becomes x (the one after `kz`).
     pub kx: usize,
+    /// Axis that becomes y (the one after `kx`).
     pub ky: usize,
+    /// Axis of the direction's largest component in magnitude, which becomes z.
     pub kz: usize,
     /// Direction scaled by `scale` (exact power of two): |dz| in [1, 2).
     pub dx: f32,
+    /// Direction component along `ky`, scaled by `scale`.
     pub dy: f32,
+    /// Direction component along `kz`, scaled by `scale`: |dz| in [1, 2).
     pub dz: f32,
+    /// The exact power of two that brings the direction's `kz` component into [1, 2) in magnitude.
     pub scale: f32,
 }
 
@@ -85,8 +92,11 @@ impl ShearedRay {
 /// Distance along the original ray direction and barycentric weights of v1 and v2.
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct TriHit {
+    /// Ray parameter of the hit, in units of the original direction.
     pub t: f32,
+    /// Barycentric weight of v1.
     pub b1: f32,
+    /// Barycentric weight of v2.
     pub b2: f32,
 }
 

@@ -42,10 +42,17 @@ pub(crate) struct Readback {
     submission: Mutex<Option<wgpu::SubmissionIndex>>,
 }
 
+/// The wgpu runtime on one Vulkan adapter: its device and queue, the SPIR-V module, and the
+/// caches of pipelines, bind groups, staging and parameter buffers.
 pub struct Gpu {
+    /// The device opened on the adapter.
     pub device: wgpu::Device,
+    /// The device's queue: every submission and buffer write goes through it.
     pub queue: wgpu::Queue,
+    /// The adapter's name, backend, device type and driver.
     pub info: wgpu::AdapterInfo,
+    /// The limits the device was opened with: the adapter's own for storage buffers and
+    /// workgroup counts, `MAX_PARAMS` bytes of push constants.
     pub limits: wgpu::Limits,
     /// Position of the adapter in `adapters()`.
     pub index: usize,
@@ -89,6 +96,7 @@ pub fn adapters() -> Vec<wgpu::Adapter> {
     list
 }
 
+/// One line naming an adapter: name, backend, device type, driver.
 pub fn describe(info: &wgpu::AdapterInfo) -> String {
     format!("{} ({:?}, {:?}, driver {} {})", info.name, info.backend, info.device_type, info.driver, info.driver_info)
 }
@@ -147,6 +155,9 @@ impl Gpu {
         Ok(out)
     }
 
+    /// Opens `adapter`, which is entry `index` of `adapters()`. Fails (`NoAdapter`) when it has no
+    /// SPIR-V passthrough or fewer than `MAX_PARAMS` bytes of push constants, or the device
+    /// cannot be opened.
     pub fn with_adapter(adapter: wgpu::Adapter, index: usize) -> Result<Gpu> {
         let info = adapter.get_info();
         let mut features = wgpu::Features::PASSTHROUGH_SHADERS | wgpu::Features::IMMEDIATES;
@@ -263,6 +274,7 @@ impl Gpu {
         self.pipeline(name).map(|_| ())
     }
 
+    /// This GPU's adapter in one line (`describe`).
     pub fn adapter_line(&self) -> String {
         describe(&self.info)
     }
@@ -453,14 +465,14 @@ impl Gpu {
         }
     }
 
-    /// Runs a sequence of passes `reps` times after a warm-up (`WARM_UP`). Per run: the wall time from
-    /// submit to completion and, where the adapter has timestamp queries, the GPU time from the
-    /// start of the first pass to the end of the last and the GPU time of each pass (ms).
     /// Whether the adapter is a CPU driver (lavapipe, SwiftShader) rather than a GPU.
     pub fn is_software(&self) -> bool {
         self.info.device_type == wgpu::DeviceType::Cpu
     }
 
+    /// Runs a sequence of passes `reps` times after a warm-up (`WARM_UP`). Per run: the wall time from
+    /// submit to completion and, where the adapter has timestamp queries, the GPU time from the
+    /// start of the first pass to the end of the last and the GPU time of each pass (ms).
     pub fn time_passes(&self, passes: &[&dyn Kernel], reps: usize) -> Result<Timing> {
         let n = passes.len() as u32;
         let qs = self.timestamps.then(|| {
@@ -680,11 +692,16 @@ impl Runtime for Gpu {
 /// the whole sequence, and GPU time of each pass (empty without timestamp queries).
 #[derive(Clone, Debug, Default)]
 pub struct Timing {
+    /// Per run: host time from submit to completion.
     pub wall_ms: Vec<f64>,
+    /// Per run: GPU time from the start of the first pass to the end of the last.
     pub gpu_ms: Vec<f64>,
+    /// Per pass: its GPU time in each run.
     pub parts_ms: Vec<Vec<f64>>,
 }
 
+/// The middle value of `v` (the upper of the two middle ones for an even count); `None` if
+/// `v` is empty.
 pub fn median(v: &[f64]) -> Option<f64> {
     if v.is_empty() {
         return None;

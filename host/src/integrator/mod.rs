@@ -24,9 +24,13 @@ impl Progress for () {}
 /// Result of a render: per-pixel primary hit and linear RGB radiance (row-major, top row first).
 #[derive(Clone, Debug)]
 pub struct RenderOutput {
+    /// Image width in pixels.
     pub width: u32,
+    /// Image height in pixels.
     pub height: u32,
+    /// Per pixel: the closest hit of its first camera ray (`Hit::NONE` where it hit nothing).
     pub hits: Vec<Hit>,
+    /// Per pixel: the average of its samples' radiance; the fourth component is 1.
     pub radiance: Vec<[f32; 4]>,
 }
 

@@ -58,9 +58,12 @@ pub fn sample_seed(seed: u32, s: u32) -> u32 {
 
 /// The renderer's buffers for batches of up to `size` pixels.
 pub struct FrameBuffers {
+    /// Per path: its current ray (the camera ray, then each bounce's).
     pub rays: Buffer<Ray>,
+    /// Per path: its state (throughput, radiance so far, `PATH_*` flags).
     pub paths: Buffer<PathState>,
     hits: Buffer<Hit>,
+    /// Per path: the closest hit of its camera ray (bounce 0).
     pub primary_hits: Buffer<Hit>,
     shadow: Buffer<Ray>,
     terms: Buffer<ShadeTerms>,
@@ -72,6 +75,8 @@ pub struct FrameBuffers {
 }
 
 impl FrameBuffers {
+    /// Allocates them on `t`'s runtime for up to `size` paths, with the leaf lists that
+    /// `accel`'s decomposed pipeline needs.
     pub fn new(t: &Tracer, accel: Accel, size: usize) -> Result<Self> {
         let rt = t.rt;
         Ok(FrameBuffers {

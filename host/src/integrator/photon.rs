@@ -37,7 +37,9 @@ use std::time::Instant;
 /// uniform grid of cell size 2r.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub enum IndexKind {
+    /// Hashed uniform grid of cell size 2r.
     Grid,
+    /// The geometry kd-tree's leaves, each split into cells of about 2r (needs the tree).
     Kd,
 }
 
@@ -56,6 +58,7 @@ pub struct PhotonOptions {
     pub caustic_radius: f32,
     /// Knaus & Zwicker's α: 1 keeps the radius fixed.
     pub alpha: f32,
+    /// Which photon index the passes build.
     pub index: IndexKind,
     /// 0: independent photons; otherwise groups of 32 with lattice offsets of this spread.
     pub spread: f32,
@@ -72,6 +75,7 @@ pub struct PhotonOptions {
     pub eye_bounces: u32,
     /// Eye samples per pixel and pass (all gather from the pass's photons).
     pub eye_samples: u32,
+    /// The render's seed: each pass's photons and eye samples derive from it and the pass index.
     pub seed: u32,
 }
 
@@ -100,11 +104,15 @@ impl Default for PhotonOptions {
 /// What one render did.
 #[derive(Clone, Debug, Default)]
 pub struct PhotonStats {
+    /// Passes run (fewer than asked when `time_limit` ended the render).
     pub passes: u32,
+    /// Photons emitted, over all passes.
     pub emitted: u64,
+    /// Photons stored in the map, over all passes.
     pub stored: u64,
     /// The last pass's gather radius (global map).
     pub last_radius: f32,
+    /// Wall time from the first pass to the image read back, in seconds.
     pub seconds: f64,
 }
 
@@ -126,18 +134,24 @@ pub fn pass_radius(r0: f32, alpha: f32, pass: u32) -> f32 {
 pub struct PhotonMap<'t> {
     t: &'t Tracer<'t>,
     accel: Accel,
+    /// The options the map was made with.
     pub o: PhotonOptions,
     batch: usize,
     rays: Buffer<Ray>,
     paths: Buffer<PhotonPath>,
     hits: Buffer<Hit>,
     lists: Option<LeafLists>,
+    /// The last traced pass's stored photons, in slot order (`capacity` slots).
     pub records: Buffer<Photon>,
+    /// The records in cell order, after `record_index`.
     pub sorted: Buffer<Photon>,
+    /// One word: the photons the last trace stored, including those past `capacity` (counted,
+    /// not stored).
     pub counter: Buffer<u32>,
     keys: Buffer<u32>,
     order: Buffer<u32>,
     sort: CountingSort<'t>,
+    /// Photon slots in `records`, `sorted` and the index (grown when a pass stores more).
     pub capacity: u32,
     /// Cells per map.
     cells: u32,
@@ -280,6 +294,8 @@ impl<'t> PhotonMap<'t> {
         self.r0
     }
 
+    /// The photon-tracing parameters of pass `pass`; `count` and `first` are 0 (each dispatch
+    /// sets its own).
     pub fn photon_params(&self, pass: u32) -> PhotonParams {
         PhotonParams {
             count: 0,

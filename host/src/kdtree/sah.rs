@@ -21,6 +21,7 @@ use kdray_shared::kdtree::{KdNode, KdTree, MAX_DEPTH};
 use kdray_shared::Triangle;
 use std::time::Instant;
 
+/// The SAH cost model and limits of a build; `Default` gives K_T = 15, K_I = 20, λ = 0.8.
 #[derive(Clone, Debug)]
 pub struct BuildOptions {
     /// Cost of a traversal step (K_T).
@@ -29,7 +30,7 @@ pub struct BuildOptions {
     pub k_i: f32,
     /// Cost factor of a split that cuts off empty space (λ, Wald & Havran use 0.8).
     pub empty_bonus: f32,
-    /// Maximum depth; default 8 + 1.3·log2 N (at most `MAX_DEPTH`).
+    /// Maximum depth; default 8 + 1.3·log2 N (below `MAX_DEPTH`).
     pub max_depth: Option<u32>,
     /// Nodes with at most this many triangles become leaves without evaluating splits.
     pub leaf_size: usize,
@@ -46,30 +47,43 @@ impl Default for BuildOptions {
 /// What the build produced, for reports.
 #[derive(Clone, Debug, Default)]
 pub struct TreeStats {
+    /// Triangles the tree was built over.
     pub triangles: usize,
+    /// Nodes, interior and leaf.
     pub nodes: usize,
+    /// Leaves, empty ones included.
     pub leaves: usize,
+    /// Leaves with no triangle.
     pub empty_leaves: usize,
     /// Triangle references in leaves / non-empty leaves.
     pub avg_leaf_size: f64,
+    /// Depth of the deepest node (the root is at depth 0).
     pub max_depth: u32,
+    /// The depth limit the build used: `BuildOptions::max_depth` or its default, below `MAX_DEPTH`.
     pub depth_limit: u32,
     /// Expected cost under the SAH model, relative to the root's surface area.
     pub sah_cost: f64,
+    /// Size of the node and primitive index arrays, in bytes.
     pub bytes: usize,
+    /// Wall-clock time of the build, in seconds.
     pub build_seconds: f64,
 }
 
 /// A built tree: the buffers the traversals read.
 #[derive(Clone, Debug)]
 pub struct KdTreeData {
+    /// The nodes, root first; an interior node's two children are adjacent.
     pub nodes: Vec<KdNode>,
+    /// Triangle indices, each leaf's a contiguous run (`KdNode::leaf`'s offset and count).
     pub prims: Vec<u32>,
+    /// The root cell: the box around every triangle.
     pub bounds: Aabb,
+    /// Sizes and cost of the tree, for reports.
     pub stats: TreeStats,
 }
 
 impl KdTreeData {
+    /// The tree as the traversals read it, over `tris`: the triangles it was built from.
     pub fn view<'a>(&'a self, tris: &'a [Triangle]) -> KdTree<'a> {
         KdTree { nodes: &self.nodes, prims: &self.prims, tris, bounds: self.bounds }
     }

@@ -11,6 +11,7 @@ use std::cell::UnsafeCell;
 pub struct Cpu;
 
 impl Cpu {
+    /// The native runtime (it has no state; `NATIVE` is the same value).
     pub fn new() -> Cpu {
         Cpu
     }

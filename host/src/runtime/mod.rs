@@ -96,12 +96,15 @@ impl RawBuffer {
             Mem::Cpu(_) => None,
         }
     }
+    /// Unique among the process's buffers (the GPU's bind-group cache keys on it).
     pub fn id(&self) -> u64 {
         self.id
     }
+    /// Size in bytes (a GPU rounds the request up to a multiple of 4, at least 4).
     pub fn bytes(&self) -> u64 {
         self.bytes
     }
+    /// The name given when the buffer was made (wgpu label, error messages).
     pub fn label(&self) -> &str {
         &self.label
     }
@@ -141,12 +144,15 @@ impl<T: Pod> Buffer<T> {
     pub(crate) fn from_raw(raw: RawBuffer, len: usize) -> Self {
         Buffer { raw, len, _t: PhantomData }
     }
+    /// Elements asked for (the memory holds at least one: bindings cannot be empty).
     pub fn len(&self) -> usize {
         self.len
     }
+    /// Whether `len` is 0.
     pub fn is_empty(&self) -> bool {
         self.len == 0
     }
+    /// The untyped buffer, for binding, clearing and read-backs.
     pub fn raw(&self) -> &RawBuffer {
         &self.raw
     }
@@ -222,6 +228,7 @@ impl kdray_shared::kernel::AtomicStore for HostStore<'_, u32> {
 /// How a kernel uses one of its buffers.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub enum Access {
+    /// Only read.
     Read,
     /// Written (and possibly read back at the item's own elements).
     Write,
@@ -230,8 +237,11 @@ pub enum Access {
 /// One named buffer of a pass. The GPU runtime checks every binding against the entry point's
 /// bindings in the SPIR-V module: same name, same element size, read-only where read.
 pub struct Bind<'a> {
+    /// The binding's name in the kernel's entry point (matched against the module's debug names).
     pub name: &'static str,
+    /// The buffer bound.
     pub buffer: &'a RawBuffer,
+    /// Whether the kernel reads or writes it.
     pub access: Access,
     /// Bytes per element on the host (`size_of::<T>()`).
     pub elem: u32,
@@ -309,6 +319,7 @@ pub trait Runtime: Sync {
     /// the next submission (also ones recorded before the call); natively at once: write
     /// between submissions, not between recording and submitting.
     fn write_raw(&self, buf: &RawBuffer, data: &[u8]) -> Result<()>;
+    /// Starts recording commands for this runtime.
     fn begin(&self) -> Commands;
     /// Records zero-filling `buf`.
     fn clear(&self, c: &mut Commands, buf: &RawBuffer) -> Result<()>;
@@ -383,6 +394,8 @@ impl dyn Runtime + '_ {
         self.finish()
     }
 
+    /// Fails (`TooLarge`, naming `label` and the device) when a buffer of `bytes` bytes exceeds
+    /// `max_binding`.
     pub fn check_size(&self, label: &str, bytes: u64) -> Result<()> {
         let max = self.max_binding();
         if bytes > max {

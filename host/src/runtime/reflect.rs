@@ -14,13 +14,18 @@
 use crate::error::{bail, ensure, err, Context, Result};
 use std::collections::{BTreeMap, HashMap, HashSet};
 
+/// A parsed SPIR-V module: what its compute entry points declare.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Module {
+    /// The GLCompute and Kernel entry points, in the module's order (other execution models are
+    /// skipped).
     pub entry_points: Vec<EntryPoint>,
 }
 
+/// One compute entry point and the resources it uses.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct EntryPoint {
+    /// The name in `OpEntryPoint` (rust-gpu qualifies it by its module: `family::name`).
     pub name: String,
     /// `OpExecutionMode LocalSize` (or `OpExecutionModeId LocalSizeId` of plain `OpConstant`s).
     pub workgroup_size: [u32; 3],
@@ -30,18 +35,25 @@ pub struct EntryPoint {
     pub push_constant_size: u32,
 }
 
+/// What a descriptor binding holds.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub enum BindingKind {
+    /// A variable of the `StorageBuffer` class, or a `BufferBlock` struct in the `Uniform` class.
     StorageBuffer,
+    /// A `Block` struct in the `Uniform` class.
     UniformBuffer,
     /// Images, samplers, anything else with a `Binding` decoration.
     Other,
 }
 
+/// One descriptor binding of an entry point.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Binding {
+    /// `DescriptorSet` decoration (0 if none).
     pub set: u32,
+    /// `Binding` decoration.
     pub binding: u32,
+    /// What the binding holds.
     pub kind: BindingKind,
     /// `NonWritable` on the variable, or on every member of its block struct; uniform buffers
     /// are always read-only.
@@ -56,6 +68,7 @@ pub struct Binding {
 }
 
 impl Module {
+    /// The entry point with exactly this name, if any.
     pub fn entry_point(&self, name: &str) -> Option<&EntryPoint> {
         self.entry_points.iter().find(|e| e.name == name)
     }
@@ -117,6 +130,9 @@ fn string(words: &[u32]) -> Result<(String, usize)> {
     bail!(Gpu: "malformed SPIR-V: literal string without a nul terminator")
 }
 
+/// Reads a SPIR-V module given as words in host byte order. Malformed input, a wrong or
+/// byte-swapped magic number, or a compute entry point without a resolvable workgroup size
+/// is an error.
 pub fn parse(words: &[u32]) -> Result<Module> {
     ensure!(words.len() >= 5, Gpu: "not a SPIR-V module: {} words, the header alone is 5", words.len());
     match words[0] {

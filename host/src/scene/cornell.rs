@@ -11,6 +11,8 @@ fn quad(s: &mut Scene, pts: [[f32; 3]; 4], m: u32) {
     s.add_quad(pts.map(Vec3::from), m).expect("built-in Cornell box geometry is valid");
 }
 
+/// The Cornell box (module docs): walls, floor, ceiling, light and two blocks in 32 triangles
+/// of four diffuse materials (the light's emissive), no point lights.
 pub fn cornell_box() -> Scene {
     let fov = 2.0 * (12.5f32 / 35.0).atan().to_degrees();
     let mut s = Scene::new(

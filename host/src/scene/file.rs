@@ -108,6 +108,8 @@ fn finite(name: &str, what: &str, v: [f32; 3]) -> Result<Vec3> {
     check_finite(name, what, v)
 }
 
+/// Loads the scene file at `path` (format in the module docs), named after the file's stem;
+/// mesh files are relative to its directory. Errors name the file, and the line where known.
 pub fn load_scene_file(path: &Path) -> Result<Scene> {
     let name = path.display().to_string();
     let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {name}"))?;

@@ -12,8 +12,11 @@ use kdray_shared::{Camera, Light, Material, Triangle, LIGHT_POINT, LIGHT_SPOT, L
 /// Where the camera is and what it sees; turned into the GPU `Camera` for a given resolution.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CameraSpec {
+    /// Position of the pinhole: where every camera ray starts.
     pub eye: Vec3,
+    /// The point the camera looks at (the image centre).
     pub look_at: Vec3,
+    /// Up direction: need not be unit length or perpendicular to the view, only not parallel to it.
     pub up: Vec3,
     /// Vertical field of view in degrees.
     pub fov_y_deg: f32,
@@ -56,32 +59,47 @@ impl CameraSpec {
 /// A point light: emits `intensity` W/sr in every direction, or as a spot light inside a cone.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PointLight {
+    /// Where the light is.
     pub position: Vec3,
+    /// Radiant intensity per RGB channel (W/sr); a spot light's on its axis.
     pub intensity: Vec3,
+    /// `Some` makes it a spot light, shining only inside the cone.
     pub spot: Option<Spot>,
 }
 
 /// A spot light's cone: unit axis, half angle and the angle where the falloff starts (degrees).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Spot {
+    /// The cone's axis, the direction the light shines (normalised when the lights are built).
     pub direction: Vec3,
+    /// Half angle of the cone in degrees: no light beyond it.
     pub cone_deg: f32,
+    /// Half angle in degrees within which the intensity is full; it falls smoothly to 0 at `cone_deg`.
     pub falloff_start_deg: f32,
 }
 
+/// A scene: triangles with materials, point and spot lights, and a camera. Emissive triangles
+/// are lights too (see `lights`).
 #[derive(Clone, Debug)]
 pub struct Scene {
+    /// Names the scene in error messages, warnings and reports.
     pub name: String,
+    /// The triangles; `Hit::prim` indexes this list.
     pub triangles: Vec<Triangle>,
+    /// The materials, indexed by `Triangle::material`.
     pub materials: Vec<Material>,
+    /// Each material's name, in the order of `materials`.
     pub material_names: Vec<String>,
+    /// Point and spot lights.
     pub point_lights: Vec<PointLight>,
+    /// The camera.
     pub camera: CameraSpec,
     /// Zero-area triangles dropped while building (they can never be hit).
     pub dropped_degenerate: usize,
 }
 
 impl Scene {
+    /// An empty scene (no triangles, materials or lights) with this name and camera.
     pub fn new(name: impl Into<String>, camera: CameraSpec) -> Self {
         Scene {
             name: name.into(),
@@ -137,6 +155,7 @@ impl Scene {
         (self.materials.len() - 1) as u32
     }
 
+    /// Material id of the material named `name`, if there is one.
     pub fn material_id(&self, name: &str) -> Option<u32> {
         self.material_names.iter().position(|n| n == name).map(|i| i as u32)
     }
@@ -271,6 +290,7 @@ impl Scene {
             .sum()
     }
 
+    /// The box (min, max) around every triangle's vertices; (+∞, −∞) when there are no triangles.
     pub fn bounds(&self) -> (Vec3, Vec3) {
         let mut lo = Vec3::splat(f32::INFINITY);
         let mut hi = Vec3::splat(f32::NEG_INFINITY);

@@ -10,7 +10,9 @@ use kdray_shared::Material;
 /// A triangle soup being assembled: positions and index triples.
 #[derive(Default, Clone)]
 pub struct Mesh {
+    /// Vertex positions.
     pub v: Vec<Vec3>,
+    /// Triangles as three indices into `v`.
     pub f: Vec<[u32; 3]>,
 }
 
@@ -82,6 +84,8 @@ impl Mesh {
         self.f.extend(o.f.iter().map(|t| t.map(|i| i + base)));
     }
 
+    /// Adds every triangle to `scene` with `material` through `Scene::add_triangle` (errors name
+    /// `what`; zero-area triangles are dropped and counted). Panics on an index outside `v`.
     pub fn into_scene(&self, scene: &mut Scene, material: u32, what: &str) -> Result<()> {
         for t in &self.f {
             let v = t.map(|i| self.v[i as usize]);

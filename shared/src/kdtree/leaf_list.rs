@@ -25,7 +25,9 @@ use bytemuck::{Pod, Zeroable};
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct LeafRef {
+    /// The leaf as a leaf node (`KdNode::leaf`): its primitive offset and count.
     pub node: KdNode,
+    /// End of the ray's interval in this leaf and the empty leaves after it.
     pub t_far: f32,
 }
 
@@ -39,11 +41,17 @@ pub const MAX_LEAF_LIST: usize = 32;
 /// One ray's leaf list under construction. The newest non-empty leaf is kept in `pending`
 /// until the next one arrives, so the empty leaves behind it extend it in place.
 pub struct LeafList {
+    /// The listed leaves; the first `len` are valid.
     pub entries: [LeafRef; MAX_LEAF_LIST],
+    /// Entries listed so far.
     pub len: u32,
+    /// Most entries allowed (at most `MAX_LEAF_LIST`).
     pub cap: u32,
+    /// The newest non-empty leaf, not yet appended (valid if `has_pending`).
     pub pending: LeafRef,
+    /// Whether `pending` holds a leaf.
     pub has_pending: bool,
+    /// Whether a leaf did not fit: the list is incomplete.
     pub overflow: bool,
 }
 

@@ -53,37 +53,48 @@ const LEAF: u32 = 3;
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
 pub struct KdNode {
+    /// Interior: split position (f32 bits). Leaf: offset into the primitive index list.
     pub a: u32,
+    /// Interior: first child index << 2 | axis. Leaf: primitive count << 2 | 3.
     pub b: u32,
 }
 
 impl KdNode {
+    /// An interior node splitting `axis` (0..=2) at `split`, with children `first_child` and
+    /// `first_child + 1`.
     pub fn interior(axis: u32, split: f32, first_child: u32) -> Self {
         KdNode { a: split.to_bits(), b: (first_child << 2) | axis }
     }
+    /// A leaf holding the primitive index list entries `offset..offset + count`.
     pub fn leaf(offset: u32, count: u32) -> Self {
         KdNode { a: offset, b: (count << 2) | LEAF }
     }
+    /// Whether this is a leaf (low two bits 3).
     #[inline(always)]
     pub fn is_leaf(&self) -> bool {
         self.b & 3 == LEAF
     }
+    /// Split axis of an interior node (0: x, 1: y, 2: z).
     #[inline(always)]
     pub fn axis(&self) -> usize {
         (self.b & 3) as usize
     }
+    /// Split position of an interior node.
     #[inline(always)]
     pub fn split(&self) -> f32 {
         f32::from_bits(self.a)
     }
+    /// Index of an interior node's first child (below the plane); the second (above) follows it.
     #[inline(always)]
     pub fn first_child(&self) -> u32 {
         self.b >> 2
     }
+    /// Offset of a leaf's primitives in the primitive index list.
     #[inline(always)]
     pub fn prim_offset(&self) -> u32 {
         self.a
     }
+    /// Number of primitives in a leaf.
     #[inline(always)]
     pub fn prim_count(&self) -> u32 {
         self.b >> 2
@@ -93,9 +104,13 @@ impl KdNode {
 /// The tree over `tris`: `nodes[0]` is the root, `bounds` the scene box.
 #[derive(Copy, Clone)]
 pub struct KdTree<'a> {
+    /// The nodes; `nodes[0]` is the root.
     pub nodes: &'a [KdNode],
+    /// The primitive index list: each leaf holds a range of it, each entry an index into `tris`.
     pub prims: &'a [u32],
+    /// The triangles.
     pub tris: &'a [Triangle],
+    /// The scene box: the root's cell.
     pub bounds: Aabb,
 }
 

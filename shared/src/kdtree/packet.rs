@@ -36,9 +36,13 @@ pub const PACKET: usize = 4;
 /// rust-gpu cannot express.
 #[derive(Copy, Clone, Default)]
 pub struct PacketEntry {
+    /// Index of the far child.
     pub node: u32,
+    /// Lanes that still need it (bit l = lane l).
     pub mask: u32,
+    /// Start of each lane's interval inside the child.
     pub t0: [f32; PACKET],
+    /// End of each lane's interval inside the child.
     pub t1: [f32; PACKET],
 }
 
@@ -286,6 +290,8 @@ pub fn run_packet<Q: Query, S: Stats>(alg: Algorithm, tree: &KdTree, rays: &[Ray
 /// with the same stack kind and push-down rule, falling back to single rays for incoherent
 /// packets.
 pub trait PacketTraversal {
+    /// Traverses `rays` for `q` with this traversal's packet form; returns whether the rays went
+    /// together (`false`: one by one).
     fn run_packet<Q: Query, S: Stats>(tree: &KdTree, rays: &[Ray; PACKET], q: &mut [Q; PACKET], stats: &mut S) -> bool;
 }
 impl PacketTraversal for Full {

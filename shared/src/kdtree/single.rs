@@ -112,12 +112,17 @@ pub fn traverse<Q: Visitor, K: StackKind<Entry>, S: Stats, const PUSHDOWN: bool>
 /// The algorithms by name. Short stacks of 1 to `MAX_SHORT_STACK` entries are instantiated.
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Hash)]
 pub enum Algorithm {
+    /// The classic full stack (`Full`).
     Stack,
+    /// kd-restart, no stack (`Restart`).
     Restart,
+    /// kd-restart with push-down (`PushDown`).
     PushDown,
+    /// Push-down with a short stack of this many entries (`Short`).
     ShortStack(u32),
 }
 
+/// Largest short stack instantiated; larger sizes fall back to it.
 pub const MAX_SHORT_STACK: u32 = 8;
 
 /// Runs `alg` for query `q` (short-stack sizes outside 1..=8 fall back to 8).
@@ -137,7 +142,9 @@ pub fn run<Q: Visitor, S: Stats>(alg: Algorithm, tree: &KdTree, ray: &Ray, q: &m
 /// Something to do with the traversal type that `alg` names: the one place where an
 /// `Algorithm` value becomes a type (the runtimes pick their kernels through it).
 pub trait WithTraversal {
+    /// What `call` returns.
     type Out;
+    /// Does the work with traversal type `T`.
     fn call<T: Traversal + PacketTraversal>(self) -> Self::Out;
 }
 
@@ -160,6 +167,7 @@ pub fn with_traversal<W: WithTraversal>(alg: Algorithm, w: W) -> W::Out {
     }
 }
 
+/// The closest hit of `ray` found by traversal `alg`.
 #[inline(always)]
 pub fn closest_hit<S: Stats>(alg: Algorithm, tree: &KdTree, ray: &Ray, stats: &mut S) -> Hit {
     let mut q = Closest::new(ray);
@@ -167,6 +175,7 @@ pub fn closest_hit<S: Stats>(alg: Algorithm, tree: &KdTree, ray: &Ray, stats: &m
     q.hit
 }
 
+/// Whether traversal `alg` finds any hit of `ray` in its interval.
 #[inline(always)]
 pub fn any_hit<S: Stats>(alg: Algorithm, tree: &KdTree, ray: &Ray, stats: &mut S) -> bool {
     let mut q = AnyHit::new(ray);
@@ -177,6 +186,7 @@ pub fn any_hit<S: Stats>(alg: Algorithm, tree: &KdTree, ray: &Ray, stats: &mut S
 /// A single-ray traversal as a type, so that kernels are generic over it (one kernel per
 /// traversal without a copy of the kernel).
 pub trait Traversal {
+    /// Walks `tree` along `ray`, calling `v` at each leaf it visits.
     fn run<V: Visitor, S: Stats>(tree: &KdTree, ray: &Ray, v: &mut V, stats: &mut S);
 }
 /// The classic full stack.

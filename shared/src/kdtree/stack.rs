@@ -7,14 +7,21 @@ use super::MAX_DEPTH;
 /// A far child of one ray and the part of the ray's interval inside it.
 #[derive(Copy, Clone, Default)]
 pub struct Entry {
+    /// Index of the far child.
     pub node: u32,
+    /// Start of the ray's interval inside it.
     pub t0: f32,
+    /// End of the ray's interval inside it.
     pub t1: f32,
 }
 
+/// Where a traversal keeps far children to visit later (`NoStack`, `ShortStack`, `FullStack`).
 pub trait Stack<E> {
+    /// Empties the stack and resets `dropped`.
     fn clear(&mut self);
+    /// Pushes `e`; `NoStack` drops it, a full `ShortStack` drops its oldest entry.
     fn push(&mut self, e: E);
+    /// Pops the newest entry; `None` when empty.
     fn pop(&mut self) -> Option<E>;
     /// Whether an entry was lost since the last `clear` (then a restart is needed).
     fn dropped(&self) -> bool;
@@ -25,6 +32,7 @@ pub struct NoStack {
     dropped: bool,
 }
 impl NoStack {
+    /// An empty stack that has dropped nothing.
     pub fn new() -> Self {
         NoStack { dropped: false }
     }
@@ -61,6 +69,7 @@ pub struct ShortStack<E, const N: usize> {
     dropped: bool,
 }
 impl<E: Copy + Default, const N: usize> ShortStack<E, N> {
+    /// An empty stack that has dropped nothing.
     pub fn new() -> Self {
         ShortStack { items: [E::default(); N], top: 0, len: 0, dropped: false }
     }

@@ -552,6 +552,9 @@ pub fn run(cli: Cli) -> Result<()> {
                 kdray::image_out::write_pfm(&img, &pfm)?;
                 println!("wrote {} (linear radiance)", pfm.display());
             }
+            let exr = out.with_extension("exr");
+            kdray::image_out::write_exr(&img, &scene, &cam, &exr)?;
+            println!("wrote {} (linear radiance, depth, normal, albedo, triangle id)", exr.display());
             if cmp {
                 if gpu.is_none() {
                     bail!("--compare needs a GPU adapter");
