@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Sets up (toolchain, Vulkan/lavapipe if missing) and renders the default scene, the Cornell
+# Sets up (Vulkan/lavapipe if missing) and renders the default scene, the Cornell
 # box, to cornell.png on the best GPU (or the CPU when there is none). Extra arguments go to
 # `kdray render`, e.g. `--device cpu --size 1024 --compare`.
 set -euo pipefail

@@ -81,7 +81,7 @@ const LAYERS: [(&str, &[&str]); 5] = [
     ("kernels", &["host/src/kernels.rs"]),
     ("tracer", &["host/src/tracer.rs", "host/src/accel.rs", "host/src/sort.rs"]),
     ("integrator", &["host/src/integrator"]),
-    ("commands", &["host/src/bench", "host/src/cli.rs"]),
+    ("commands", &["host/src/bin/kdray"]),
 ];
 
 /// How code names each layer.
@@ -92,6 +92,28 @@ fn names(layer: &str) -> &'static [&'static str] {
         "tracer" => &["crate::tracer", "crate::accel", "crate::Tracer", "crate::Accel", "crate::sort"],
         "integrator" => &["crate::integrator", "integrator::"],
         _ => &["crate::bench", "crate::cli"],
+    }
+}
+
+/// The library never uses what only the command line needs (feature `cli`): a user with
+/// `default-features = false` compiles none of it, and errors are `kdray::Error`.
+#[test]
+fn the_library_holds_no_command_line_dependency() {
+    for (path, text) in sources("host/src") {
+        if path.components().any(|c| c.as_os_str() == "bin") {
+            continue;
+        }
+        for word in ["clap", "indicatif", "plotters", "anyhow"] {
+            for (n, line) in text.lines().enumerate() {
+                let code = line.split("//").next().unwrap_or("");
+                assert!(!code.contains(word), "{}:{}: the library uses {word}: {}", path.display(), n + 1, line.trim());
+            }
+        }
+    }
+    let manifest = std::fs::read_to_string(root().join("host/Cargo.toml")).unwrap();
+    for dep in ["clap", "indicatif", "plotters", "anyhow"] {
+        let line = manifest.lines().find(|l| l.starts_with(&format!("{dep} ="))).unwrap_or_else(|| panic!("{dep} not in host/Cargo.toml"));
+        assert!(line.contains("optional = true"), "{dep} must be optional (feature cli): {line}");
     }
 }
 

@@ -127,6 +127,21 @@ fn kdray(args: &[&str], envs: &[(&str, &str)]) -> (i32, String, String) {
     (o.status.code().unwrap_or(-1), String::from_utf8_lossy(&o.stdout).into(), String::from_utf8_lossy(&o.stderr).into())
 }
 
+/// The command line prints a library error's chain once: context, then the cause, nothing
+/// repeated (the typed error holds the chain in its message).
+#[test]
+fn cli_prints_an_error_chain_once() {
+    let (code, _, err) = kdray(&["render", "--device", "cpu", "--scene", "/nonexistent/dir/missing.obj"], &[]);
+    assert_eq!(code, 1);
+    let line = err.trim_end();
+    assert!(line.starts_with("error: cannot read /nonexistent/dir/missing.obj: "), "{line}");
+    let cause = line.rsplit_once(": ").unwrap().1;
+    assert_eq!(line.matches(cause).count(), 1, "the cause is repeated: {line}");
+    let (code, _, err) = kdray(&["error", "/nonexistent/a.pfm", "/nonexistent/b.pfm"], &[]);
+    assert_eq!(code, 1);
+    assert_eq!(err.matches("No such file").count(), 1, "{err}");
+}
+
 #[test]
 fn cli_reports_one_error_line_and_exits_non_zero() {
     let bad = tmp("cli-bad.obj", "v 0 0 0\nv 1 nan 0\nv 0 1 0\nf 1 2 3\n");

@@ -15,7 +15,7 @@ fn main() -> Result<(), Error> {
     let scene = Scene::from_mesh("cube", &vertices, &faces)?;
     let tree = kdtree::try_build(&scene.triangles, &BuildOptions::default())?;
 
-    // A 64 × 64 grid of rays along −z from z = 3, half of them passing beside the cube.
+    // A 64 × 64 grid of rays along −z from z = 3, three quarters of them passing beside the cube.
     let n = 64;
     let rays: Vec<Ray> = (0..n * n)
         .map(|i| {

@@ -41,15 +41,15 @@ pub enum Error {
     #[error("{0}")]
     Scene(String),
     /// Reading or writing a file.
-    #[error("{}{source}", if path.as_os_str().is_empty() { String::new() } else { format!("{}: ", path.display()) })]
+    #[error("{}{error}", if path.as_os_str().is_empty() { String::new() } else { format!("{}: ", path.display()) })]
     Io {
         /// The file (empty when not known).
         path: PathBuf,
         /// What the system said.
-        #[source]
-        source: std::io::Error,
+        error: std::io::Error,
     },
-    /// The GPU device was lost (driver reset, hang detected, out of memory while running).
+    /// The GPU did not finish a submission or a read-back within the time limit (a hang or a
+    /// lost device); what was recorded before is not affected.
     #[error("GPU device lost: {0}")]
     DeviceLost(String),
     /// An argument the call cannot take: an option out of range, a combination that does not
@@ -60,14 +60,15 @@ pub enum Error {
     /// that does not match its kernel's bindings, a failed mapping.
     #[error("{0}")]
     Gpu(String),
-    /// What was being done when `source` happened.
-    #[error("{context}: {source}")]
+    /// What was being done when `inner` happened. The message holds the whole chain on one
+    /// line (`context: inner`), so [`std::error::Error::source`] is `None` and a reporter that
+    /// walks sources (anyhow's `{:#}`) prints nothing twice; [`Error::kind`] finds the kind.
+    #[error("{context}: {inner}")]
     Context {
         /// What was being done.
         context: String,
         /// What went wrong.
-        #[source]
-        source: Box<Error>,
+        inner: Box<Error>,
     },
 }
 
@@ -75,38 +76,38 @@ impl Error {
     /// The error under any context added on the way up.
     pub fn kind(&self) -> &Error {
         match self {
-            Error::Context { source, .. } => source.kind(),
+            Error::Context { inner, .. } => inner.kind(),
             e => e,
         }
     }
 
     /// This error with `context` in front (`context: error`).
     pub fn context(self, context: impl fmt::Display) -> Error {
-        Error::Context { context: context.to_string(), source: Box::new(self) }
+        Error::Context { context: context.to_string(), inner: Box::new(self) }
     }
 
     /// An I/O error about `path`.
-    pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Error {
-        Error::Io { path: path.into(), source }
+    pub fn io(path: impl Into<PathBuf>, error: std::io::Error) -> Error {
+        Error::Io { path: path.into(), error }
     }
 }
 
 impl From<std::io::Error> for Error {
-    fn from(source: std::io::Error) -> Error {
-        Error::Io { path: PathBuf::new(), source }
+    fn from(error: std::io::Error) -> Error {
+        Error::Io { path: PathBuf::new(), error }
     }
 }
 
 impl From<fmt::Error> for Error {
     fn from(_: fmt::Error) -> Error {
-        Error::Io { path: PathBuf::new(), source: std::io::Error::other("formatting failed") }
+        Error::Io { path: PathBuf::new(), error: std::io::Error::other("formatting failed") }
     }
 }
 
 impl From<image::ImageError> for Error {
     fn from(e: image::ImageError) -> Error {
         match e {
-            image::ImageError::IoError(source) => Error::Io { path: PathBuf::new(), source },
+            image::ImageError::IoError(error) => Error::Io { path: PathBuf::new(), error },
             e => Error::InvalidInput(e.to_string()),
         }
     }
@@ -165,6 +166,18 @@ pub(crate) use {bail, ensure, err};
 mod tests {
     use super::*;
 
+    /// What a reporter that walks `source()` prints (as the CLI does): the message, then
+    /// `: source` for every source.
+    fn source_chain(e: &dyn std::error::Error) -> String {
+        let mut s = e.to_string();
+        let mut cur = e.source();
+        while let Some(c) = cur {
+            s += &format!(": {c}");
+            cur = c.source();
+        }
+        s
+    }
+
     #[test]
     fn kinds_survive_context_and_messages_read_as_one_line() {
         let e = err!(SceneFile("box.obj", Some(12)): "face {} has {} vertices", 3, 2).context("loading the scene");
@@ -175,5 +188,8 @@ mod tests {
         assert_eq!(e.to_string(), "reading x.toml: gone");
         assert!(matches!(e.kind(), Error::Io { .. }));
         assert_eq!(Error::io("a.png", std::io::Error::other("full")).to_string(), "a.png: full");
+        // One line, nothing repeated by a reporter that walks `source()` (the CLI's anyhow).
+        assert!(std::error::Error::source(&e).is_none());
+        assert_eq!(source_chain(&e), "reading x.toml: gone");
     }
 }

@@ -40,7 +40,8 @@ pub enum AccelStructure {
 pub struct LeafLists {
     /// Each ray's non-empty leaves in traversal order: ray i's `capacity` entries start at `i * capacity`.
     pub lists: Buffer<LeafRef>,
-    /// Per ray: the number of entries, with `LEAF_OVERFLOW` set if the list overflowed.
+    /// Per ray: after `TraverseLeaves`, the number of entries with `LEAF_OVERFLOW` set if the
+    /// list overflowed; `IntersectListed` then overwrites it with 1 (to trace again) or 0.
     pub status: Buffer<u32>,
 }
 

@@ -341,7 +341,8 @@ pub struct PhotonParams {
     /// share one sample, each shifted by its lane's point of a rank-1 lattice scaled by
     /// `spread` (modulo 1): every photon's marginal distribution is still exactly the lights'.
     pub spread: f32,
-    /// The specular materials' photons go to the caustic map (1) or the global one (0).
+    /// Photons that reached a diffuse surface through specular bounces only go to the caustic
+    /// map (1) or to the global one (0).
     pub caustic_map: u32,
     /// Padding: aligns `bounds_min` to 16 bytes.
     pub _pad: u32,

@@ -310,7 +310,7 @@ impl Gpu {
     /// The encoder of commands recorded for this GPU.
     fn commands<'c>(&self, c: &'c mut Commands) -> Result<&'c mut wgpu::CommandEncoder> {
         if c.device != Some(self.id) {
-            bail!(Gpu: "commands of another runtime recorded on {}", self.info.name);
+            bail!(InvalidInput: "commands of another runtime recorded on {}", self.info.name);
         }
         c.encoder.as_mut().ok_or_else(|| err!(Gpu: "commands already submitted"))
     }
@@ -319,8 +319,8 @@ impl Gpu {
     fn own<'b>(&self, buf: &'b RawBuffer) -> Result<&'b wgpu::Buffer> {
         match (buf.gpu(), buf.device()) {
             (Some(b), Some(d)) if d == self.id => Ok(b),
-            (Some(_), _) => bail!(Gpu: "buffer '{}' belongs to another GPU", buf.label()),
-            _ => bail!(Gpu: "buffer '{}' is host memory, not this GPU's", buf.label()),
+            (Some(_), _) => bail!(InvalidInput: "buffer '{}' belongs to another GPU", buf.label()),
+            _ => bail!(InvalidInput: "buffer '{}' is host memory, not this GPU's", buf.label()),
         }
     }
 
@@ -639,7 +639,7 @@ impl Runtime for Gpu {
     fn dispatch_indirect(&self, c: &mut Commands, k: &dyn Kernel, args: &Buffer<[u32; 3]>, index: usize) -> Result<()> {
         let b = self.own(args.raw())?;
         if index >= args.len() {
-            bail!(Gpu: "{}: indirect arguments {index} of {}", k.entry(), args.len());
+            bail!(InvalidInput: "{}: indirect arguments {index} of {}", k.entry(), args.len());
         }
         let enc = self.commands(c)?;
         self.record(enc, k, Some((b, 12 * index as u64)), None)
@@ -659,7 +659,7 @@ impl Runtime for Gpu {
 
     fn submit(&self, mut c: Commands) -> Result<()> {
         self.commands(&mut c)?;
-        let enc = c.encoder.take().ok_or_else(|| err!(Gpu: "commands of another runtime"))?;
+        let enc = c.encoder.take().ok_or_else(|| err!(InvalidInput: "commands of another runtime"))?;
         let idx = self.queue.submit([enc.finish()]);
         for r in &c.readbacks {
             *r.submission.lock().expect("read-back") = Some(idx.clone());

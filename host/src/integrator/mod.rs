@@ -28,7 +28,8 @@ pub struct RenderOutput {
     pub width: u32,
     /// Image height in pixels.
     pub height: u32,
-    /// Per pixel: the closest hit of its first camera ray (`Hit::NONE` where it hit nothing).
+    /// Per pixel: the closest hit of one of its camera rays (jittered where the integrator
+    /// jitters; from the last sample group rendered), `Hit::NONE` where it hit nothing.
     pub hits: Vec<Hit>,
     /// Per pixel: the average of its samples' radiance; the fourth component is 1.
     pub radiance: Vec<[f32; 4]>,

@@ -86,7 +86,7 @@ pub fn validate(k: &dyn Kernel, host: &[Bind], info: &reflect::EntryPoint) -> Re
     check_aliasing(k, host)?;
     for b in &info.bindings {
         if b.name.is_none() || b.set != 0 || b.kind != reflect::BindingKind::StorageBuffer {
-            bail!(Gpu: "kernel {name}: binding {} (set {}) must be a named storage buffer in set 0 (the module was not built by host/build.rs?)", b.binding, b.set);
+            bail!(Gpu: "kernel {name}: binding {} (set {}) must be a named storage buffer in set 0 (the module was not built by scripts/kernels.sh?)", b.binding, b.set);
         }
     }
     let params = k.params().len() as u32;

@@ -96,6 +96,9 @@ pub struct Scene {
     pub camera: CameraSpec,
     /// Zero-area triangles dropped while building (they can never be hit).
     pub dropped_degenerate: usize,
+    /// What loading the scene let pass but a user should hear of (e.g. an MTL file that could
+    /// not be read), without the `warning: ` prefix; the library prints nothing itself.
+    pub warnings: Vec<String>,
 }
 
 impl Scene {
@@ -109,6 +112,7 @@ impl Scene {
             point_lights: Vec::new(),
             camera,
             dropped_degenerate: 0,
+            warnings: Vec::new(),
         }
     }
 
@@ -266,17 +270,6 @@ impl Scene {
         Ok(())
     }
 
-    /// One warning per problem the renderer will not show, without the `warning: ` prefix;
-    /// `source` names the scene. (None today: glass, once shaded as diffuse with a warning, is a
-    /// dielectric since photon mapping.)
-    pub fn warnings_for(&self, _source: &str) -> Vec<String> {
-        Vec::new()
-    }
-
-    /// `warnings_for` the scene's name.
-    pub fn warnings(&self) -> Vec<String> {
-        self.warnings_for(&self.name)
-    }
 
     /// The area of the surfaces photons land on (every non-emissive triangle), in f64.
     pub fn surface_area(&self) -> f64 {
@@ -494,13 +487,21 @@ pub fn load(spec: &str) -> Result<Scene> {
             Ok(k) => procedural::chairs(k)?,
             Err(_) => bail!(Scene: "'{s}': use chairs:K with K = 1, 4, 16, …, 4096"),
         },
-        s if s.ends_with(".obj") => obj::load_obj_scene(std::path::Path::new(s))?,
-        s if s.ends_with(".toml") => file::load_scene_file(std::path::Path::new(s))?,
+        s if s.ends_with(".obj") => in_file(s, obj::load_obj_scene(std::path::Path::new(s)))?,
+        s if s.ends_with(".toml") => in_file(s, file::load_scene_file(std::path::Path::new(s)))?,
         s => bail!(Scene: "unknown scene '{s}': use cornell, cornell-mirror, cornell-mirrors, cornell-glass, cornell-chair, chairs:K, conference, a .obj file or a .toml scene file"),
     };
-    scene.validate()?;
-    for w in scene.warnings_for(spec) {
-        eprintln!("warning: {w}");
+    in_file(spec, scene.validate().map(|_| scene))
+}
+
+/// A scene file's content errors as `Error::SceneFile` of that file (the generic checks —
+/// colours, finiteness, the camera — report `Error::Scene` with the file's name in front).
+fn in_file(spec: &str, r: Result<Scene>) -> Result<Scene> {
+    match r {
+        Err(crate::Error::Scene(msg)) if spec.ends_with(".obj") || spec.ends_with(".toml") => {
+            let message = msg.strip_prefix(&format!("{spec}: ")).unwrap_or(&msg).to_string();
+            Err(crate::Error::SceneFile { file: spec.to_string(), line: None, message })
+        }
+        r => r,
     }
-    Ok(scene)
 }

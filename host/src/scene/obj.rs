@@ -153,7 +153,7 @@ pub fn add_obj(
     let (models, mtls) = tobj::load_obj(path, &opts).map_err(|e| err!(SceneFile(name, None): "{e}"))?;
     // A missing or broken .mtl is not fatal: faces fall back to the default material.
     let mtls = mtls.unwrap_or_else(|e| {
-        eprintln!("warning: {name}: materials not loaded ({e}); using a grey default");
+        scene.warnings.push(format!("{name}: materials not loaded ({e}); using a grey default"));
         Vec::new()
     });
     let default = scene.add_material("default", Material { diffuse: [0.8; 3], ..Default::default() });

@@ -444,6 +444,9 @@ pub fn run(cli: Cli) -> Result<()> {
                 bail!("--exposure must be a positive number");
             }
             let scene = scene::load(&scene)?;
+            for w in &scene.warnings {
+                eprintln!("warning: {w}");
+            }
             println!(
                 "scene {}: {} triangles ({} degenerate dropped), {} materials, {} lights",
                 scene.name,
