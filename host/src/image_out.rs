@@ -4,6 +4,7 @@
 use crate::error::{err, Context, Result};
 use crate::integrator::RenderOutput;
 use crate::scene::Scene;
+use kdray_shared::math::{dot3, length3, scale3, sub3};
 use kdray_shared::{shade, Camera, Ray, MISS};
 use std::path::Path;
 
@@ -46,7 +47,8 @@ pub fn write_pfm(out: &RenderOutput, path: &Path) -> Result<()> {
 /// pass) the AOVs `depth.Z` (distance from the eye; +inf where the ray missed),
 /// `normal.X`/`.Y`/`.Z` (unit geometric normal facing the eye; 0 on a miss), `albedo.R`/`.G`/`.B`
 /// (the material's diffuse reflectance; 0 on a miss) and `id` (32-bit unsigned: the triangle,
-/// `Hit::prim`; `u32::MAX` on a miss). `cam` and `scene` must be those of the render.
+/// `Hit::prim`; `u32::MAX` on a miss, or where the id is not a triangle of `scene`). `cam` and
+/// `scene` must be those of the render.
 pub fn write_exr(out: &RenderOutput, scene: &Scene, cam: &Camera, path: &Path) -> Result<()> {
     use exr::prelude::*;
     let n = (out.width * out.height) as usize;
@@ -56,21 +58,22 @@ pub fn write_exr(out: &RenderOutput, scene: &Scene, cam: &Camera, path: &Path) -
     let mut f = vec![Vec::with_capacity(n); 10];
     let mut id = Vec::with_capacity(n);
     for (c, h) in out.radiance.iter().zip(&out.hits) {
-        let aov = match scene.triangles.get(h.prim as usize).filter(|_| h.prim != MISS) {
+        let tri = scene.triangles.get(h.prim as usize).filter(|_| h.prim != MISS);
+        let aov = match tri {
             Some(tri) => {
-                let (p, _) = shade::surface_point(tri, h, &Ray::new(cam.origin, [0.0, 0.0, 1.0], 0.0, 1.0));
-                let to_eye = [cam.origin[0] - p[0], cam.origin[1] - p[1], cam.origin[2] - p[2]];
-                let (_, normal) = shade::surface_point(tri, h, &Ray::new(cam.origin, [-to_eye[0], -to_eye[1], -to_eye[2]], 0.0, 1.0));
+                // The surface point and geometric normal, the normal then turned to the eye.
+                let (p, n) = shade::surface_point(tri, h, &Ray::new(cam.origin, [0.0, 0.0, 1.0], 0.0, 1.0));
+                let to_eye = sub3(cam.origin, p);
+                let normal = if dot3(n, to_eye) < 0.0 { scale3(n, -1.0) } else { n };
                 let albedo = scene.materials.get(tri.material as usize).map_or([0.0; 3], |m| m.diffuse);
-                let depth = (to_eye[0] * to_eye[0] + to_eye[1] * to_eye[1] + to_eye[2] * to_eye[2]).sqrt();
-                [depth, normal[0], normal[1], normal[2], albedo[0], albedo[1], albedo[2]]
+                [length3(to_eye), normal[0], normal[1], normal[2], albedo[0], albedo[1], albedo[2]]
             }
             None => [f32::INFINITY, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
         };
         for (k, v) in [c[0], c[1], c[2]].into_iter().chain(aov).enumerate() {
             f[k].push(v);
         }
-        id.push(if h.prim == MISS { u32::MAX } else { h.prim });
+        id.push(if tri.is_some() { h.prim } else { u32::MAX });
     }
     let names = ["R", "G", "B", "depth.Z", "normal.X", "normal.Y", "normal.Z", "albedo.R", "albedo.G", "albedo.B"];
     let mut list: SmallVec<[AnyChannel<FlatSamples>; 4]> = names.iter().zip(f).map(|(name, v)| AnyChannel::new(*name, FlatSamples::F32(v))).collect();
