@@ -69,7 +69,7 @@ fn emitted_photons_follow_the_lights_emission() {
     // (the toroidal shift); photons of one group are not independent of each other, so
     // grouped emission is tested lane by lane.
     let n = 200_000u32;
-    for (spread, lane) in [(0.0f32, None), (1.0, Some(0)), (1.0, Some(13)), (0.25, Some(31)), (0.25, Some(5))] {
+    for (spread, lane) in [(0.0f32, None), (1.0, Some(0)), (1.0, Some(13)), (0.25, Some(31)), (0.25, Some(5)), (0.1, Some(7))] {
         let (mut which, mut x_bins, mut cos2, mut phi) = ([0u64; 3], [0u64; 10], [0u64; 10], [0u64; 8]);
         let (mut sphere_z, mut cone_z) = ([0u64; 10], [0u64; 10]);
         let mut power = [0.0f64; 3];
@@ -202,9 +202,10 @@ fn photon_indices_hold_every_photon_in_its_cell_and_gather_like_brute_force() {
         let tr = tree(&s);
         for rt in runtimes() {
             let t = Tracer::new(rt, &s, Some(&tr)).unwrap();
-            for kind in [IndexKind::Grid, IndexKind::Kd] {
-                let what = format!("{spec} on {}, {kind:?} index", rt.name());
-                let mut map = PhotonMap::new(&t, Accel::kd(Algorithm::ShortStack(3)), Some(&tr), s.surface_area(), small_options(kind, 20_000)).unwrap();
+            for (kind, grid_window) in [(IndexKind::Grid, 3), (IndexKind::Grid, 2), (IndexKind::Kd, 3)] {
+                let what = format!("{spec} on {}, {kind:?} index, window {grid_window}", rt.name());
+                let o = PhotonOptions { grid_window, ..small_options(kind, 20_000) };
+                let mut map = PhotonMap::new(&t, Accel::kd(Algorithm::ShortStack(3)), Some(&tr), s.surface_area(), o).unwrap();
                 let stored = map.trace_and_index(0).unwrap();
                 let records = map.read_records().unwrap();
                 assert_eq!(records.len(), stored as usize, "{what}");

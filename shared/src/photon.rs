@@ -362,22 +362,45 @@ pub trait PhotonIndex {
     fn visit<V: CellVisitor>(&self, x: [f32; 3], r: f32, map: u32, photons: &[Photon], offsets: &[u32], v: &mut V);
 }
 
-/// (B) A hashed uniform grid of cell size 2r per map: `cells` buckets per map (a power of
-/// two); a disc of radius r overlaps at most 2 × 2 × 2 cells, buckets visited once each.
+/// (B) A hashed uniform grid per map: cells of size 2r/(w − 1) for a window of w = 2 or 3
+/// cells per axis (`IndexParams::grid`: cells of 2r or r), so a disc of radius r overlaps at
+/// most w × w × w cells. Cells are grouped in blocks of w × w × w; a block is hashed to one of
+/// `blocks` slots (a power of two) and a cell's bucket is its block's slot times w³ plus its
+/// place in the block (coordinates modulo w). Any w consecutive cells along an axis differ
+/// modulo w, so the cells of one query never share a bucket: each is visited once, with no
+/// bookkeeping. Smaller cells (w = 3) visit about half the area (9r² against 16r²) in more,
+/// smaller cells.
 pub struct HashGrid {
     /// The scene box's minimum corner; cells are counted from one cell below it.
     pub origin: [f32; 3],
-    /// Buckets per map (a power of two).
+    /// Buckets per map: `blocks` × w³.
     pub cells: u32,
-    /// Cell size of the global and the caustic map (twice each map's gather radius).
+    /// Cells per axis of a query's window (2 or 3).
+    pub window: u32,
+    /// Hashed slots of blocks per map (a power of two).
+    pub blocks: u32,
+    /// Cell size of the global and the caustic map.
     pub cell_size: [f32; 2],
 }
 
+/// The window (cells per axis a query visits) of `IndexParams::grid`: 3, or 2 otherwise.
+#[inline(always)]
+pub fn grid_window(grid: u32) -> u32 {
+    if grid == 3 {
+        3
+    } else {
+        2
+    }
+}
+
 impl HashGrid {
-    /// The grid of `p`: origin `bounds_min`, `cells` buckets, cells twice each map's radius.
+    /// The grid of `p`: origin `bounds_min`, `cells` buckets, cells of 2r/(w − 1) for each
+    /// map's radius r.
     #[inline(always)]
     pub fn new(p: &IndexParams) -> HashGrid {
-        HashGrid { origin: p.bounds_min, cells: p.cells, cell_size: [2.0 * p.radius[0], 2.0 * p.radius[1]] }
+        let w = grid_window(p.grid);
+        let k = 2.0 / (w - 1) as f32;
+        HashGrid { origin: p.bounds_min, cells: p.cells, window: w, blocks: p.cells / (w * w * w), cell_size: [k * p.radius[0], k * p.radius[1]] }
     }
     #[inline(always)]
     fn coord(&self, x: f32, o: f32, inv: f32) -> u32 {
@@ -386,8 +409,10 @@ impl HashGrid {
     }
     #[inline(always)]
     fn bucket(&self, c: [u32; 3], map: u32) -> u32 {
-        let h = pcg_hash(c[0] ^ pcg_hash(c[1] ^ pcg_hash(c[2])));
-        (h & (self.cells - 1)) + map * self.cells
+        let w = self.window;
+        let h = pcg_hash((c[0] / w) ^ pcg_hash((c[1] / w) ^ pcg_hash(c[2] / w)));
+        let place = c[0] % w + w * (c[1] % w + w * (c[2] % w));
+        (h & (self.blocks - 1)) * (w * w * w) + place + map * self.cells
     }
 }
 
@@ -402,28 +427,51 @@ impl PhotonIndex for HashGrid {
     fn visit<V: CellVisitor>(&self, x: [f32; 3], r: f32, map: u32, photons: &[Photon], offsets: &[u32], v: &mut V) {
         let inv = 1.0 / self.cell_size[map as usize];
         let o = self.origin;
+        let w = self.window;
         let lo = [self.coord(x[0] - r, o[0], inv), self.coord(x[1] - r, o[1], inv), self.coord(x[2] - r, o[2], inv)];
-        let hi = [self.coord(x[0] + r, o[0], inv), self.coord(x[1] + r, o[1], inv), self.coord(x[2] + r, o[2], inv)];
-        let mut seen = [NO_CELL; 8];
-        let mut n = 0;
-        let mut k = 0u32;
-        while k < 8 {
-            let c = [lo[0] + (k & 1), lo[1] + ((k >> 1) & 1), lo[2] + ((k >> 2) & 1)];
-            if c[0] <= hi[0] && c[1] <= hi[1] && c[2] <= hi[2] {
-                let b = self.bucket(c, map);
-                let mut dup = false;
-                let mut j = 0;
-                while j < n {
-                    dup |= seen[j] == b;
-                    j += 1;
+        // At most w cells per axis (the disc spans 2r, at most w − 1 cell sizes).
+        let hi = [
+            self.coord(x[0] + r, o[0], inv).min(lo[0] + w - 1),
+            self.coord(x[1] + r, o[1], inv).min(lo[1] + w - 1),
+            self.coord(x[2] + r, o[2], inv).min(lo[2] + w - 1),
+        ];
+        // Blocks and places counted up incrementally (no division per cell), the block hash
+        // nested as in `bucket`.
+        let base = map * self.cells;
+        let w3 = w * w * w;
+        let (mut qz, mut mz) = (lo[2] / w, lo[2] % w);
+        let mut z = lo[2];
+        while z <= hi[2] {
+            let hz = pcg_hash(qz);
+            let (mut qy, mut my) = (lo[1] / w, lo[1] % w);
+            let mut y = lo[1];
+            while y <= hi[1] {
+                let hy = pcg_hash(qy ^ hz);
+                let (mut qx, mut mx) = (lo[0] / w, lo[0] % w);
+                let mut xx = lo[0];
+                while xx <= hi[0] {
+                    let h = pcg_hash(qx ^ hy);
+                    v.cell((h & (self.blocks - 1)) * w3 + mx + w * (my + w * mz) + base, photons, offsets);
+                    xx += 1;
+                    mx += 1;
+                    if mx == w {
+                        mx = 0;
+                        qx += 1;
+                    }
                 }
-                if !dup {
-                    seen[n] = b;
-                    n += 1;
-                    v.cell(b, photons, offsets);
+                y += 1;
+                my += 1;
+                if my == w {
+                    my = 0;
+                    qy += 1;
                 }
             }
-            k += 1;
+            z += 1;
+            mz += 1;
+            if mz == w {
+                mz = 0;
+                qz += 1;
+            }
         }
     }
 }

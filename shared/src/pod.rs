@@ -414,8 +414,8 @@ pub struct IndexParams {
     pub radius: [f32; 2],
     /// `FILTER_*`.
     pub filter: u32,
-    /// Padding: aligns `bounds_min` to 16 bytes.
-    pub _pad: u32,
+    /// The hashed grid's window (`photon::HashGrid`): 3 (cells of size r) or 2 (cells of 2r).
+    pub grid: u32,
     /// The scene box (the grid's origin, the kd-tree's root cell).
     pub bounds_min: [f32; 3],
     /// Padding: aligns `bounds_max` to 16 bytes.

@@ -189,7 +189,8 @@ pub enum Command {
         #[arg(long, value_enum, default_value = "grid")]
         photon_index: IndexArg,
         /// Photon emission (photon): `coherent` (groups of 32 sharing one sample, lattice
-        /// offsets), `coherent:S` (offsets scaled by S in (0, 1]) or `independent`.
+        /// offsets scaled by 0.1), `coherent:S` (offsets scaled by S in (0, 1]) or
+        /// `independent`.
         #[arg(long, default_value = "coherent")]
         emission: String,
         /// Direct light from the photon map too (the paper's way), not by shadow rays.
@@ -198,6 +199,10 @@ pub enum Command {
         /// Gather kernel (photon).
         #[arg(long, value_enum, default_value = "constant")]
         filter: FilterArg,
+        /// The hashed photon grid's cells per axis a gather visits (photon): 3 (cells of the
+        /// radius) or 2 (cells of twice the radius).
+        #[arg(long, default_value_t = 3)]
+        grid_window: u32,
         /// A pass per bounce and query (camera or emission, then closest-hit query, shading,
         /// shadow query per bounce: the wavefront schedule) instead of whole photon and eye
         /// paths in one kernel each (path, photon; the same paths).
@@ -411,6 +416,7 @@ pub fn run(cli: Cli) -> Result<()> {
             emission,
             photon_direct,
             filter,
+            grid_window,
             split_passes,
             build,
         } => {
@@ -518,6 +524,7 @@ pub fn run(cli: Cli) -> Result<()> {
                             },
                             photon_bounces: 16,
                             fused: !split_passes,
+                            grid_window,
                             caustic_radius: 0.5,
                             eye_bounces: bounces,
                             eye_samples: spp,
@@ -578,7 +585,7 @@ pub fn run(cli: Cli) -> Result<()> {
 fn parse_emission(s: &str) -> Result<f32> {
     match s {
         "independent" => Ok(0.0),
-        "coherent" => Ok(1.0),
+        "coherent" => Ok(kdray::integrator::photon::COHERENT_SPREAD),
         s => match s.strip_prefix("coherent:").map(str::parse::<f32>) {
             Some(Ok(v)) if v > 0.0 && v <= 1.0 => Ok(v),
             _ => bail!("--emission must be independent, coherent or coherent:S with S in (0, 1], got '{s}'"),

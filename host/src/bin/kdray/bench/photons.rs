@@ -2,10 +2,12 @@
 //! on the device the run is given.
 //!
 //! Table 1 (`photons`): per scene, one pass of 2^20 photons — photon rays and bounces
-//! (from a separate counting run), the trace's time and photon bounces per second, the photon
-//! index's build time (hashed grid and kd leaves), and the eye pass and the gather at the
-//! benchmark's resolution. Times are wall time per pass of several passes recorded into one
-//! submission (launch overhead amortised, every clear and dispatch included).
+//! (from a separate counting run), the trace's time and photon bounces per second (whole
+//! paths, the per-bounce passes, and the whole-path kernel without lights, stopped at the
+//! first hit and storing nothing: where its time goes), the photon index's build time (hashed
+//! grid and kd leaves), and the eye pass and the gather at the benchmark's resolution (grid of
+//! cells r and of 2r, kd leaves). Times are wall time per pass of several passes recorded into
+//! one submission (launch overhead amortised, every clear and dispatch included).
 //!
 //! Table 2 (`photons-error`): per scene at 512² (or `--size` if smaller), the error of
 //! progressive photon mapping (default, fixed radius, kd index, independent photons, direct
@@ -22,6 +24,8 @@ use kdray::image_out::{image_error, write_pfm};
 use kdray::integrator::path::{self, FrameBuffers, PathOptions};
 use kdray::integrator::photon::{self as pm, IndexKind, PhotonMap, PhotonOptions};
 use kdray::integrator::RenderOutput;
+use kdray::kernels::TracePhotons;
+use kdray_shared::PhotonParams;
 use kdray::runtime::cpu::NATIVE;
 use kdray::runtime::{Commands, Runtime};
 use kdray::tracer::Tracer;
@@ -80,7 +84,7 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
     o.progress.set_length(specs.len() as u64 * 2);
     let speed_header: Vec<String> = [
         "scene", "triangles", "photons", "rays traced", "bounces", "bounces/photon", "stored", "trace ms", "M bounces/s",
-        "split trace ms", "index grid ms", "grid keys / sort / permute ms", "cells, slots", "index kd ms", "eye ms", "gather grid ms", "gather kd ms", "image",
+        "split trace ms", "trace parts: emit only / first hit only / no stores ms", "index grid ms", "grid keys / sort / permute ms", "cells, slots", "index kd ms", "eye ms", "gather grid ms", "gather grid 2r ms", "gather kd ms", "image",
     ]
     .map(String::from)
     .to_vec();
@@ -106,6 +110,22 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
         let mut grid = PhotonMap::new(&t, accel, Some(tree), area, base.clone())?;
         let stored = grid.trace_and_index(0)?;
         let trace_ms = time_recorded(rt, copies, &|c| grid.record_trace(c, 0))?;
+        // Where the whole-path kernel's time goes: the same dispatch with no lights (launch and
+        // emission only), stopping at the first hit (max_bounces 0), and storing nothing
+        // (capacity 0: slots are still taken).
+        let method = accel.whole_path_method(TracePhotons::PREFIX).context("no whole-path photon kernel")?;
+        let part = |p: PhotonParams| -> Result<f64> {
+            let k = TracePhotons::new(method, PhotonParams { count: photons, ..p }, &t.lights, t.scene_binds(), &t.materials, &grid.records, &grid.counter)
+                .context("no whole-path photon kernel")?;
+            time_recorded(rt, copies, &|c| {
+                rt.clear(c, grid.counter.raw())?;
+                rt.dispatch(c, &k)
+            })
+        };
+        let p0 = grid.photon_params(0);
+        let parts = [part(PhotonParams { light_count: 0, ..p0 })?, part(PhotonParams { max_bounces: 0, ..p0 })?, part(PhotonParams { capacity: 0, ..p0 })?];
+        let mut wide = PhotonMap::new(&t, accel, Some(tree), area, PhotonOptions { grid_window: 2, ..base.clone() })?;
+        wide.trace_and_index(0)?;
         let index_grid = time_recorded(rt, copies, &|c| grid.record_index(c, 0))?;
         let steps: Vec<f64> = (1..=2).map(|s| time_recorded(rt, copies, &|c| grid.record_index_steps(c, 0, s))).collect::<Result<_>>()?;
         let (cells, slots) = grid.index_size();
@@ -114,7 +134,7 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
         let index_kd = time_recorded(rt, copies, &|c| kd.record_index(c, 0))?;
         let cam = scene.camera.to_pod(o.size, o.size);
         let n = (o.size * o.size) as usize;
-        let (eye_ms, gather_grid, gather_kd) = if t.batch_size(accel, n) >= n {
+        let (eye_ms, gather_grid, gather_wide, gather_kd) = if t.batch_size(accel, n) >= n {
             let fb = FrameBuffers::new(&t, accel, n)?;
             let po = PathOptions { seed: 1, bounces: 16, diffuse_bounces: 0, spp: 1, jitter: true, fused: true };
             let mut p = path::params(&t, &cam, &po, 0, n, 0);
@@ -126,10 +146,11 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
                 Ok(())
             })?;
             let g = time_recorded(rt, copies, &|c| rt.dispatch(c, &grid.gather(0, n as u32, &fb)))?;
+            let w = time_recorded(rt, copies, &|c| rt.dispatch(c, &wide.gather(0, n as u32, &fb)))?;
             let k = time_recorded(rt, copies, &|c| rt.dispatch(c, &kd.gather(0, n as u32, &fb)))?;
-            (format!("{eye:.3}"), format!("{g:.3}"), format!("{k:.3}"))
+            (format!("{eye:.3}"), format!("{g:.3}"), format!("{w:.3}"), format!("{k:.3}"))
         } else {
-            ("–".into(), "–".into(), "–".into())
+            ("–".into(), "–".into(), "–".into(), "–".into())
         };
         row.extend([
             rays.to_string(),
@@ -139,17 +160,20 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
             format!("{trace_ms:.3}"),
             format!("{:.1}", bounces as f64 / trace_ms / 1e3),
             format!("{split_ms:.3}"),
+            format!("{:.3} / {:.3} / {:.3}", parts[0], parts[1], parts[2]),
             format!("{index_grid:.3}"),
             format!("{:.3} / {:.3} / {:.3}", steps[0], steps[1] - steps[0], index_grid - steps[1]),
             format!("{cells}, {slots}"),
             format!("{index_kd:.3}"),
             eye_ms,
             gather_grid,
+            gather_wide,
             gather_kd,
             format!("{}²", o.size),
         ]);
         speed.push(row);
         drop(kd);
+        drop(wide);
         drop(grid);
         o.progress.inc(1);
 
