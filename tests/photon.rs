@@ -419,18 +419,20 @@ fn native_and_gpu_trace_the_same_photons_and_render_the_same_image() {
 fn whole_path_photon_kernel_traces_the_photons_of_the_pass_per_bounce_schedule() {
     let s = scene::load("cornell-glass").unwrap();
     let tr = tree(&s);
-    for rt in runtimes() {
+    // Brute force too: on lavapipe its whole-path items (every triangle at every bounce)
+    // outran the driver's loop limit and lost a fifth of the photons, silently.
+    for (rt, accel, photons) in runtimes().into_iter().flat_map(|rt| [(rt, Accel::kd(Algorithm::ShortStack(3)), 20_000), (rt, Accel::BRUTE, 2_000)]) {
         let t = Tracer::new(rt, &s, Some(&tr)).unwrap();
         let mut sets = Vec::new();
         for fused in [true, false] {
-            let o = PhotonOptions { fused, ..small_options(IndexKind::Grid, 20_000) };
-            let mut map = PhotonMap::new(&t, Accel::kd(Algorithm::ShortStack(3)), Some(&tr), s.surface_area(), o).unwrap();
+            let o = PhotonOptions { fused, ..small_options(IndexKind::Grid, photons) };
+            let mut map = PhotonMap::new(&t, accel, Some(&tr), s.surface_area(), o).unwrap();
             map.trace_and_index(0).unwrap();
             let mut v: Vec<_> = map.read_records().unwrap().iter().map(|p| (p.position.map(f32::to_bits), p.power, p.packed)).collect();
             v.sort();
             sets.push(v);
         }
-        assert!(sets[0].len() > 20_000, "{}", rt.name());
+        assert!(sets[0].len() > photons as usize / 2, "{} {}: {} photons stored", rt.name(), accel.name(), sets[0].len());
         if rt.is_native() {
             assert!(sets[0] == sets[1], "{}: the whole-path kernel and the per-bounce passes store different photons", rt.name());
         } else {

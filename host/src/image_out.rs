@@ -25,7 +25,14 @@ pub fn to_rgb8(out: &RenderOutput, exposure: f32) -> image::RgbImage {
 
 /// The tonemapped preview: radiance ÷ `exposure`, clamped, sRGB-encoded 8-bit PNG.
 pub fn write_png(out: &RenderOutput, exposure: f32, path: &Path) -> Result<()> {
-    to_rgb8(out, exposure).save(path).with_context(|| format!("cannot write {}", path.display()))
+    crate::files::write(path, png_bytes(&to_rgb8(out, exposure))?)
+}
+
+/// An 8-bit RGB image encoded as PNG.
+pub fn png_bytes(img: &image::RgbImage) -> Result<Vec<u8>> {
+    let mut bytes = Vec::new();
+    img.write_to(&mut std::io::Cursor::new(&mut bytes), image::ImageFormat::Png).map_err(|e| err!(InvalidInput: "cannot encode a PNG: {e}"))?;
+    Ok(bytes)
 }
 
 /// Linear radiance as a PFM (portable float map: little-endian RGB f32, bottom row first).
@@ -39,7 +46,7 @@ pub fn write_pfm(out: &RenderOutput, path: &Path) -> Result<()> {
             }
         }
     }
-    std::fs::write(path, bytes).with_context(|| format!("cannot write {}", path.display()))
+    crate::files::write(path, bytes)
 }
 
 /// The render as one OpenEXR file (32-bit float channels, ZIP-compressed, one layer):
@@ -79,10 +86,12 @@ pub fn write_exr(out: &RenderOutput, scene: &Scene, cam: &Camera, path: &Path) -
     let mut list: SmallVec<[AnyChannel<FlatSamples>; 4]> = names.iter().zip(f).map(|(name, v)| AnyChannel::new(*name, FlatSamples::F32(v))).collect();
     list.push(AnyChannel::new("id", FlatSamples::U32(id)));
     let layer = Layer::new((out.width as usize, out.height as usize), LayerAttributes::named("kdray"), Encoding::SMALL_LOSSLESS, AnyChannels::sort(list));
-    Image::from_layer(layer).write().to_file(path).map_err(|e| match e {
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    Image::from_layer(layer).write().to_buffered(&mut bytes).map_err(|e| match e {
         exr::error::Error::Io(io) => crate::Error::io(path, io),
         e => err!(InvalidInput: "{}: cannot write OpenEXR: {e}", path.display()),
-    })
+    })?;
+    crate::files::write(path, bytes.into_inner())
 }
 
 /// Reads a PFM written by `write_pfm` (3 channels, little-endian): width, height, rows top first.

@@ -588,6 +588,10 @@ impl Runtime for Gpu {
         false
     }
 
+    fn is_software(&self) -> bool {
+        Gpu::is_software(self)
+    }
+
     fn max_binding(&self) -> u64 {
         Gpu::max_binding(self)
     }

@@ -147,9 +147,9 @@ pub fn path_passes<'a>(t: &'a Tracer, accel: Accel, p: &RenderParams, fb: &'a Fr
 }
 
 /// The whole-path kernel for `p` (camera to end in one thread), when the module has one for
-/// this way of finding hits (`Accel::whole_path_method`).
+/// this way of finding hits on this runtime (`Tracer::whole_path_method`).
 pub fn fused_pass<'a>(t: &'a Tracer, accel: Accel, p: &RenderParams, fb: &'a FrameBuffers) -> Option<TracePaths<'a>> {
-    let method = accel.whole_path_method(TracePaths::PREFIX)?;
+    let method = t.whole_path_method(accel, TracePaths::PREFIX)?;
     TracePaths::new(method, *p, &t.scene_box, t.scene_binds(), &t.materials, &t.lights, &fb.rays, &fb.paths, &fb.primary_hits)
 }
 

@@ -240,7 +240,7 @@ impl<'t> PhotonMap<'t> {
         let rt = t.rt;
         let batch = t.batch_size(accel, o.photons as usize);
         // The per-bounce schedule's buffers only where it runs (no whole-path kernel).
-        let split = if o.fused && accel.whole_path_method(TracePhotons::PREFIX).is_some() { 1 } else { batch };
+        let split = if o.fused && t.whole_path_method(accel, TracePhotons::PREFIX).is_some() { 1 } else { batch };
         // Stored photons per emitted one: about the number of diffuse bounces; sized up after
         // the first pass if needed.
         let capacity = o.photons.saturating_mul(2).max(1024);
@@ -336,13 +336,13 @@ impl<'t> PhotonMap<'t> {
     }
 
     /// The whole-path photon kernel for `p`, when `fused` is on and there is one
-    /// (`Accel::whole_path_method`).
+    /// (`Tracer::whole_path_method`).
     fn fused(&self, p: PhotonParams) -> Option<TracePhotons<'_>> {
         if !self.o.fused {
             return None;
         }
         let t = self.t;
-        let method = self.accel.whole_path_method(TracePhotons::PREFIX)?;
+        let method = t.whole_path_method(self.accel, TracePhotons::PREFIX)?;
         TracePhotons::new(method, p, &t.lights, t.scene_binds(), &t.materials, &self.records, &self.counter)
     }
 

@@ -77,6 +77,10 @@ impl Runtime for Cpu {
         true
     }
 
+    fn is_software(&self) -> bool {
+        false
+    }
+
     fn max_binding(&self) -> u64 {
         // The kernels index with u32 elements of at most a few dozen bytes.
         1 << 36

@@ -311,6 +311,10 @@ pub trait Runtime: Sync {
     fn name(&self) -> String;
     /// Whether this is the native runtime.
     fn is_native(&self) -> bool;
+    /// Whether this is a software Vulkan driver (lavapipe, SwiftShader) rather than a GPU.
+    /// Lavapipe's code generator ends an invocation silently after about 65 535 loop
+    /// iterations in all (gallivm's loop limiter), so long-running items are avoided there.
+    fn is_software(&self) -> bool;
     /// Largest buffer a kernel can bind, in bytes.
     fn max_binding(&self) -> u64;
     /// A zero-filled buffer of `bytes` bytes (never empty: at least 4).

@@ -56,7 +56,7 @@ pub fn export(scene: &Scene, dir: &Path, width: u32, height: u32, max_depth: u32
                 ply.extend_from_slice(&(3 * i + j).to_le_bytes());
             }
         }
-        std::fs::write(dir.join(&file), ply).with_context(|| format!("cannot write {}", dir.join(&file).display()))?;
+        crate::files::write(&dir.join(&file), ply)?;
         writeln!(x, "  <shape type=\"ply\"><string name=\"filename\" value=\"{file}\"/><boolean name=\"face_normals\" value=\"true\"/>")?;
         if m.flags & MAT_MIRROR != 0 {
             writeln!(x, "    <bsdf type=\"conductor\"><string name=\"material\" value=\"none\"/><rgb name=\"specular_reflectance\" value=\"{}\"/></bsdf>", rgb(m.diffuse))?;
@@ -90,6 +90,6 @@ pub fn export(scene: &Scene, dir: &Path, width: u32, height: u32, max_depth: u32
     }
     writeln!(x, "</scene>")?;
     let path = dir.join("scene.xml");
-    std::fs::write(&path, x).with_context(|| format!("cannot write {}", path.display()))?;
+    crate::files::write(&path, x)?;
     Ok(path)
 }

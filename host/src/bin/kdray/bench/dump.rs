@@ -46,7 +46,7 @@ pub fn write_npy<T: NpyElem>(path: &Path, shape: &[usize], data: &[T]) -> Result
     bytes.extend_from_slice(&(header.len() as u16).to_le_bytes());
     bytes.extend_from_slice(header.as_bytes());
     bytes.extend_from_slice(bytemuck::cast_slice(data));
-    std::fs::write(path, bytes).with_context(|| format!("cannot write {}", path.display()))
+    Ok(kdray::files::write(path, bytes)?)
 }
 
 /// The scene's triangles as OBJ, face k = triangle id k.
@@ -60,7 +60,7 @@ pub fn write_obj(path: &Path, scene: &Scene) -> Result<()> {
     for k in 0..scene.triangles.len() {
         writeln!(s, "f {} {} {}", 3 * k + 1, 3 * k + 2, 3 * k + 3)?;
     }
-    std::fs::write(path, s).with_context(|| format!("cannot write {}", path.display()))
+    Ok(kdray::files::write(path, s)?)
 }
 
 /// Writes one ray batch and its answers (`hits` for closest-hit batches, `occluded` for

@@ -113,7 +113,7 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
         // Where the whole-path kernel's time goes: the same dispatch with no lights (launch and
         // emission only), stopping at the first hit (max_bounces 0), and storing nothing
         // (capacity 0: slots are still taken).
-        let method = accel.whole_path_method(TracePhotons::PREFIX).context("no whole-path photon kernel")?;
+        let method = t.whole_path_method(accel, TracePhotons::PREFIX).context("no whole-path photon kernel")?;
         let part = |p: PhotonParams| -> Result<f64> {
             let k = TracePhotons::new(method, PhotonParams { count: photons, ..p }, &t.lights, t.scene_binds(), &t.materials, &grid.records, &grid.counter)
                 .context("no whole-path photon kernel")?;

@@ -310,7 +310,7 @@ fn render(path: &Path, draw: impl FnOnce(&Root) -> Result<()>) -> Result<()> {
     }
     let img = image::RgbImage::from_raw(WIDTH, HEIGHT, buf)
         .ok_or_else(|| anyhow!("internal error: pixel buffer has the wrong size"))?;
-    img.save(path).with_context(|| format!("writing {}", path.display()))
+    Ok(kdray::files::write(path, kdray::image_out::png_bytes(&img)?)?)
 }
 
 /// Loads and registers the plot font as "sans-serif" once per process: `$KDRAY_PLOT_FONT`

@@ -125,7 +125,7 @@ fn save(dir: &Path, name: &str, csv: &str, md: &str) -> Result<()> {
     let base = dir.join(name);
     for (ext, text) in [("csv", csv), ("md", md)] {
         let path = base.with_extension(ext);
-        std::fs::write(&path, text).with_context(|| format!("cannot write {}", path.display()))?;
+        kdray::files::write(&path, text)?;
     }
     Ok(())
 }
