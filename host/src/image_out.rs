@@ -23,16 +23,19 @@ pub fn to_rgb8(out: &RenderOutput, exposure: f32) -> image::RgbImage {
     })
 }
 
-/// The tonemapped preview: radiance ÷ `exposure`, clamped, sRGB-encoded 8-bit PNG.
+/// The tonemapped preview: radiance ÷ `exposure`, clamped, sRGB-encoded 8 bits, as PNG (or
+/// the 8-bit format `path`'s extension names, e.g. `.jpg`).
 pub fn write_png(out: &RenderOutput, exposure: f32, path: &Path) -> Result<()> {
-    crate::files::write(path, png_bytes(&to_rgb8(out, exposure))?)
+    write_rgb8(&to_rgb8(out, exposure), path)
 }
 
-/// An 8-bit RGB image encoded as PNG.
-pub fn png_bytes(img: &image::RgbImage) -> Result<Vec<u8>> {
+/// Writes an 8-bit RGB image (atomically, `files::write`) as PNG, or in the format `path`'s
+/// extension names when the `image` crate knows it.
+pub fn write_rgb8(img: &image::RgbImage, path: &Path) -> Result<()> {
+    let format = image::ImageFormat::from_path(path).unwrap_or(image::ImageFormat::Png);
     let mut bytes = Vec::new();
-    img.write_to(&mut std::io::Cursor::new(&mut bytes), image::ImageFormat::Png).map_err(|e| err!(InvalidInput: "cannot encode a PNG: {e}"))?;
-    Ok(bytes)
+    img.write_to(&mut std::io::Cursor::new(&mut bytes), format).map_err(|e| err!(InvalidInput: "{}: cannot encode the image: {e}", path.display()))?;
+    crate::files::write(path, bytes)
 }
 
 /// Linear radiance as a PFM (portable float map: little-endian RGB f32, bottom row first).

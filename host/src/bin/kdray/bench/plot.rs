@@ -310,7 +310,7 @@ fn render(path: &Path, draw: impl FnOnce(&Root) -> Result<()>) -> Result<()> {
     }
     let img = image::RgbImage::from_raw(WIDTH, HEIGHT, buf)
         .ok_or_else(|| anyhow!("internal error: pixel buffer has the wrong size"))?;
-    Ok(kdray::files::write(path, kdray::image_out::png_bytes(&img)?)?)
+    Ok(kdray::image_out::write_rgb8(&img, path)?)
 }
 
 /// Loads and registers the plot font as "sans-serif" once per process: `$KDRAY_PLOT_FONT`
