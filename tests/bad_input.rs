@@ -404,3 +404,24 @@ fn bad_photon_options_are_one_error_line() {
         assert!(!err.contains("panicked"), "{args:?}: {err}");
     }
 }
+
+#[test]
+fn a_tracer_refuses_an_edited_scene_or_another_scenes_tree() {
+    use kdray::{kdtree, runtime::cpu::NATIVE, Scene, Tracer};
+    // Library users can edit a scene's public fields after loading: the tracer validates
+    // before any kernel reads them (natively, indexing past the materials would panic).
+    let mut s = Scene::from_mesh("square", &[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]], &[[0, 1, 2], [0, 2, 3]]).unwrap();
+    let tree = kdtree::try_build(&s.triangles, &Default::default()).unwrap();
+    s.triangles[1].material = 7;
+    let e = Tracer::new(&NATIVE, &s, Some(&tree)).err().expect("an error");
+    assert!(e.to_string().contains("material id 7 does not exist"), "{e}");
+    s.triangles[1].material = 0;
+    s.triangles[0].v1[2] = f32::NAN;
+    assert!(Tracer::new(&NATIVE, &s, None).is_err());
+    // A tree built for a larger scene names triangles this one lacks.
+    let big = kdray::scene::load("cornell").unwrap();
+    let big_tree = kdtree::try_build(&big.triangles, &Default::default()).unwrap();
+    let small = Scene::from_mesh("triangle", &[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], &[[0, 1, 2]]).unwrap();
+    let e = Tracer::new(&NATIVE, &small, Some(&big_tree)).err().expect("an error");
+    assert!(matches!(e.kind(), kdray::Error::InvalidInput(_)) && e.to_string().contains("does not belong"), "{e}");
+}

@@ -74,8 +74,19 @@ pub struct Tracer<'r> {
 }
 
 impl<'r> Tracer<'r> {
-    /// The scene on `rt`; `tree` is needed only for the kd traversals.
+    /// The scene on `rt`; `tree` is needed only for the kd traversals. The scene is validated
+    /// (`Scene::validate`: material ids, finite vertices, colours, lights, camera) and the tree
+    /// must index its triangles: the kernels trust both, so a scene edited through its public
+    /// fields, or a tree of another scene, is an error here rather than an out-of-range read on
+    /// the device or a panic natively.
     pub fn new(rt: &'r dyn Runtime, scene: &Scene, tree: Option<&KdTreeData>) -> Result<Self> {
+        scene.validate()?;
+        if let Some(t) = tree {
+            let n = scene.triangles.len();
+            if let Some(&p) = t.prims.iter().find(|&&p| p as usize >= n) {
+                bail!(InvalidInput: "the kd-tree does not belong to scene '{}': it names triangle {p} of {n}", scene.name);
+            }
+        }
         let lights = scene.lights();
         let (lo, hi) = scene.bounds();
         let structure = match tree {
