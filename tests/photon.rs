@@ -421,7 +421,8 @@ fn whole_path_photon_kernel_traces_the_photons_of_the_pass_per_bounce_schedule()
     let tr = tree(&s);
     // Brute force too: on lavapipe its whole-path items (every triangle at every bounce)
     // outran the driver's loop limit and lost a fifth of the photons, silently.
-    for (rt, accel, photons) in runtimes().into_iter().flat_map(|rt| [(rt, Accel::kd(Algorithm::ShortStack(3)), 20_000), (rt, Accel::BRUTE, 2_000)]) {
+    // (runtime, traversal, photons, fewest stored photons)
+    for (rt, accel, photons, least) in runtimes().into_iter().flat_map(|rt| [(rt, Accel::kd(Algorithm::ShortStack(3)), 20_000, 20_000), (rt, Accel::BRUTE, 2_000, 1_800)]) {
         let t = Tracer::new(rt, &s, Some(&tr)).unwrap();
         let mut sets = Vec::new();
         for fused in [true, false] {
@@ -432,7 +433,7 @@ fn whole_path_photon_kernel_traces_the_photons_of_the_pass_per_bounce_schedule()
             v.sort();
             sets.push(v);
         }
-        assert!(sets[0].len() > photons as usize / 2, "{} {}: {} photons stored", rt.name(), accel.name(), sets[0].len());
+        assert!(sets[0].len() > least, "{} {}: {} photons stored", rt.name(), accel.name(), sets[0].len());
         if rt.is_native() {
             assert!(sets[0] == sets[1], "{}: the whole-path kernel and the per-bounce passes store different photons", rt.name());
         } else {

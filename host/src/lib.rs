@@ -28,9 +28,9 @@
 //! acceleration structure), `integrator` (what a pixel computes, as schedules of passes:
 //! direct light, path tracing, progressive photon mapping), `scene` (OBJ/MTL, TOML, built-in
 //! and procedural scenes, meshes as arrays), `kdtree` (the SAH builder), `image_out` (PNG,
-//! PFM, OpenEXR with AOVs), `files` (outputs written atomically), `error` (`kdray::Error`). The command line and the benchmarks are
-//! the `kdray` binary (feature `cli`, on by default; `default-features = false` leaves out its
-//! dependencies).
+//! PFM, OpenEXR with AOVs), `files` (outputs written atomically), `error` (`kdray::Error`).
+//! The command line and the benchmarks are the `kdray` binary (feature `cli`, on by default;
+//! `default-features = false` leaves out its dependencies).
 #![warn(missing_docs)]
 pub mod accel;
 pub mod error;
