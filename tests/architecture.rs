@@ -32,13 +32,15 @@ fn sources(dir: &str) -> Vec<(PathBuf, String)> {
     out
 }
 
-/// Lines of code (comments dropped) of `dir` that contain `word`.
+/// Lines of code (comments dropped) of `dir` that contain `word` as a word of its own (not the
+/// tail of a longer name: `spirv_std::` is not `std::`).
 fn uses(dir: &str, word: &str) -> Vec<String> {
     let mut hits = Vec::new();
+    let starts_word = |code: &str, at: usize| !code[..at].ends_with(|c: char| c.is_alphanumeric() || c == '_');
     for (path, text) in sources(dir) {
         for (n, line) in text.lines().enumerate() {
             let code = line.split("//").next().unwrap_or("");
-            if code.contains(word) {
+            if code.match_indices(word).any(|(at, _)| starts_word(code, at)) {
                 hits.push(format!("{}:{}: {}", path.display(), n + 1, line.trim()));
             }
         }

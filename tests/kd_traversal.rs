@@ -1,6 +1,7 @@
 //! Every kd-tree traversal (full stack, kd-restart, push-down, short-stack 1..8; one ray at a
-//! time and in packets of four) and the decomposed pipeline against the brute-force oracle,
-//! natively and on the GPU, on the hard cases of kd-tree traversal and on random rays.
+//! time and in packets of four), the decomposed pipeline and the compressed wide BVH against
+//! the brute-force oracle, natively and on the GPU, on the hard cases of kd-tree traversal and
+//! on random rays.
 mod common;
 
 use glam::Vec3;
@@ -51,7 +52,14 @@ fn octant_order(rays: &[Ray]) -> Vec<usize> {
 
 /// GPU kernels that get every random ray; the others get `GPU_SAMPLE` of them (lavapipe in CI
 /// runs on two CPU cores).
-const GPU_FULL: [Accel; 2] = [Accel::kd(Algorithm::Stack), Accel::kd(Algorithm::ShortStack(3))];
+const GPU_FULL: [Accel; 3] = [Accel::kd(Algorithm::Stack), Accel::kd(Algorithm::ShortStack(3)), Accel::BVH];
+
+/// Every one-ray GPU kernel but the oracle's: the kd traversals and the BVH.
+fn gpu_single() -> Vec<Accel> {
+    let mut v: Vec<Accel> = Accel::all().into_iter().skip(1).collect();
+    v.push(Accel::BVH);
+    v
+}
 const GPU_SAMPLE: usize = 1 << 16;
 
 /// Checks every traversal against the oracle; `rays[..hard]` are hand-made hard cases, the
@@ -64,9 +72,12 @@ fn check(name: &str, scene: &Scene, tree: &KdTreeData, rays: &[Ray], hard: usize
 
 /// `check`, natively only when `on_gpu` is false.
 fn check_on(name: &str, scene: &Scene, tree: &KdTreeData, rays: &[Ray], hard: usize, on_gpu: bool) -> Vec<Hit> {
-    let cpu = Tracer::new(&NATIVE, scene, Some(tree)).unwrap();
+    let bvh = kdray::bvh::build(&scene.triangles);
+    let cpu = Tracer::new(&NATIVE, scene, Some(tree)).unwrap().with_bvh(&bvh).unwrap();
     let oracle = cpu.closest_hits(Accel::BRUTE, rays).unwrap();
     let oracle_any = cpu.any_hits(Accel::BRUTE, rays).unwrap();
+    // The wide BVH, natively: bit-identical to the oracle.
+    common::assert_matches_oracle(&format!("{name}: CPU"), &cpu, Accel::BVH, rays, &oracle, &oracle_any);
     for alg in cpu_algorithms() {
         let hits = cpu.closest_hits(Accel::kd(alg), rays).unwrap();
         let bad: Vec<usize> = (0..rays.len()).filter(|&i| hits[i] != oracle[i]).collect();
@@ -99,8 +110,8 @@ fn check_on(name: &str, scene: &Scene, tree: &KdTreeData, rays: &[Ray], hard: us
         assert_eq!(bad, 0, "{name}: CPU {} any-hit differs on {bad} rays", accel.name());
     }
     if let Some(g) = common::gpu().filter(|_| on_gpu) {
-        let gpu = Tracer::new(g, scene, Some(tree)).unwrap();
-        for accel in Accel::all().into_iter().skip(1) {
+        let gpu = Tracer::new(g, scene, Some(tree)).unwrap().with_bvh(&bvh).unwrap();
+        for accel in gpu_single() {
             let n = if GPU_FULL.contains(&accel) { rays.len() } else { (hard + GPU_SAMPLE).min(rays.len()) };
             let hits = gpu.closest_hits(accel, &rays[..n]).unwrap();
             let bad: Vec<usize> = (0..n).filter(|&i| !agree(&oracle[i], &hits[i])).collect();
@@ -250,7 +261,12 @@ fn closed_sphere_far_from_origin_every_traversal() {
         .into_iter()
         .map(|d| Ray::new(center.to_array(), d, 0.0, f32::INFINITY))
         .collect();
-    let cpu = Tracer::new(&NATIVE, &scene, Some(&tree)).unwrap();
+    let bvh = kdray::bvh::build(&scene.triangles);
+    let cpu = Tracer::new(&NATIVE, &scene, Some(&tree)).unwrap().with_bvh(&bvh).unwrap();
+    let misses = cpu.closest_hits(Accel::BVH, &rays).unwrap().iter().filter(|h| !h.is_hit()).count();
+    assert_eq!(misses, 0, "CPU BVH: {misses} of 10^6 rays leaked");
+    let misses = cpu.any_hits(Accel::BVH, &rays).unwrap().iter().filter(|h| !**h).count();
+    assert_eq!(misses, 0, "CPU BVH any-hit: {misses} of 10^6 rays leaked");
     for alg in cpu_algorithms() {
         let misses = cpu.closest_hits(Accel::kd(alg), &rays).unwrap().iter().filter(|h| !h.is_hit()).count();
         assert_eq!(misses, 0, "CPU {alg:?}: {misses} of 10^6 rays leaked");
@@ -265,8 +281,8 @@ fn closed_sphere_far_from_origin_every_traversal() {
         assert_eq!(misses, 0, "CPU {} any-hit: {misses} of 10^6 rays leaked", accel.name());
     }
     if let Some(g) = common::gpu() {
-        let gpu = Tracer::new(g, &scene, Some(&tree)).unwrap();
-        for accel in Accel::all().into_iter().skip(1) {
+        let gpu = Tracer::new(g, &scene, Some(&tree)).unwrap().with_bvh(&bvh).unwrap();
+        for accel in gpu_single() {
             let rays = if GPU_FULL.contains(&accel) { &rays[..] } else { &rays[..GPU_SAMPLE] };
             let misses = gpu.closest_hits(accel, &rays).unwrap().iter().filter(|h| !h.is_hit()).count();
             assert_eq!(misses, 0, "GPU {}: {misses} of {} rays leaked", accel.name(), rays.len());

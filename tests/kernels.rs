@@ -72,3 +72,20 @@ fn fingerprint_sees_an_edit() {
     let crlf: Vec<u8> = bytes.iter().flat_map(|&b| if b == b'\n' { vec![b'\r', b'\n'] } else { vec![b] }).collect();
     assert_eq!(sources::fingerprint(&bytes), sources::fingerprint(&crlf), "CRLF checkouts fingerprint alike");
 }
+
+/// Every entry point's bindings are numbered 0, 1, 2, … without a gap: with a gap (an unused
+/// parameter that rust-gpu drops, e.g. bindings 0, 1, 3, 4, 5) lavapipe 22.3 ran the BVH kernel
+/// without writing its output, silently.
+#[test]
+fn every_entry_points_bindings_are_contiguous() {
+    let m = kdray::runtime::module::module_info().unwrap();
+    let mut gaps = Vec::new();
+    for e in &m.entry_points {
+        let mut b: Vec<u32> = e.bindings.iter().map(|b| b.binding).collect();
+        b.sort();
+        if b.iter().enumerate().any(|(i, &n)| n != i as u32) {
+            gaps.push(format!("{}: {b:?}", e.name));
+        }
+    }
+    assert!(gaps.is_empty(), "entry points with gaps in their bindings:\n{}", gaps.join("\n"));
+}

@@ -422,8 +422,10 @@ fn whole_path_photon_kernel_traces_the_photons_of_the_pass_per_bounce_schedule()
     // Brute force too: on lavapipe its whole-path items (every triangle at every bounce)
     // outran the driver's loop limit and lost a fifth of the photons, silently.
     // (runtime, traversal, photons, fewest stored photons)
-    for (rt, accel, photons, least) in runtimes().into_iter().flat_map(|rt| [(rt, Accel::kd(Algorithm::ShortStack(3)), 20_000, 20_000), (rt, Accel::BRUTE, 2_000, 1_800)]) {
-        let t = Tracer::new(rt, &s, Some(&tr)).unwrap();
+    let bvh = kdray::bvh::build(&s.triangles);
+    let cases = |rt| [(rt, Accel::kd(Algorithm::ShortStack(3)), 20_000, 20_000), (rt, Accel::BVH, 20_000, 20_000), (rt, Accel::BRUTE, 2_000, 1_800)];
+    for (rt, accel, photons, least) in runtimes().into_iter().flat_map(cases) {
+        let t = Tracer::new(rt, &s, Some(&tr)).unwrap().with_bvh(&bvh).unwrap();
         let mut sets = Vec::new();
         for fused in [true, false] {
             let o = PhotonOptions { fused, ..small_options(IndexKind::Grid, photons) };
@@ -444,6 +446,37 @@ fn whole_path_photon_kernel_traces_the_photons_of_the_pass_per_bounce_schedule()
             let sum = |v: &[([u32; 3], u32, u32)]| v.iter().map(|p| p.0.iter().map(|b| f32::from_bits(*b) as f64).sum::<f64>()).sum::<f64>();
             let (sa, sb) = (sum(a), sum(b));
             assert!((sa - sb).abs() <= 1e-5 * sa.abs(), "{}: {sa} vs {sb}", rt.name());
+        }
+    }
+}
+
+/// The wide BVH finds the kd-tree's hits, so it traces the same photons and eye paths: natively
+/// bit for bit, on the GPU up to rounding (whole-path kernels on both).
+#[test]
+fn bvh_traces_the_photons_and_paths_of_the_kd_tree() {
+    let s = scene::load("cornell-glass").unwrap();
+    let tr = tree(&s);
+    let bvh = kdray::bvh::build(&s.triangles);
+    let cam = s.camera.to_pod(32, 32);
+    for rt in runtimes() {
+        let t = Tracer::new(rt, &s, Some(&tr)).unwrap().with_bvh(&bvh).unwrap();
+        let photons = |accel: Accel| {
+            let mut map = PhotonMap::new(&t, accel, Some(&tr), s.surface_area(), small_options(IndexKind::Grid, 20_000)).unwrap();
+            map.trace_and_index(0).unwrap();
+            let mut v: Vec<_> = map.read_records().unwrap().iter().map(|p| (p.position.map(f32::to_bits), p.power, p.packed)).collect();
+            v.sort();
+            v
+        };
+        let (a, b) = (photons(Accel::kd(Algorithm::ShortStack(3))), photons(Accel::BVH));
+        let image = |accel: Accel| path::render(&t, accel, &cam, &PathOptions::path(4, 8, 4), &()).unwrap();
+        let e = error(&image(Accel::BVH), &image(Accel::kd(Algorithm::ShortStack(3))));
+        eprintln!("{}: {} / {} photons (kd / BVH), path-traced images differ by {:.6} %", rt.name(), a.len(), b.len(), e * 100.0);
+        if rt.is_native() {
+            assert!(a == b, "native: the BVH and the kd-tree store different photons");
+            assert_eq!(e, 0.0, "native: the BVH and the kd-tree render different images");
+        } else {
+            assert!((a.len() as f64 - b.len() as f64).abs() <= 1e-3 * a.len() as f64, "{}: {} vs {} photons", rt.name(), a.len(), b.len());
+            assert!(e < 0.002, "{}: the BVH's and the kd-tree's images differ by {:.3} %", rt.name(), e * 100.0);
         }
     }
 }

@@ -1,5 +1,5 @@
-//! How hits are found, as four independent choices: the structure searched (brute force or
-//! the kd-tree), the traversal of that structure, the grouping of rays (one per thread, or
+//! How hits are found, as four independent choices: the structure searched (brute force, the
+//! kd-tree or the compressed wide BVH), the traversal of that structure, the grouping of rays (one per thread, or
 //! packets of four) and the pipeline (one kernel per query, or the decomposed traverse → leaf
 //! list → intersect → fallback). `Accel` names one combination; `Accel::parse` reads the CLI's
 //! names and rejects combinations that do not exist.
@@ -14,6 +14,8 @@ pub enum Structure {
     Brute,
     /// The SAH kd-tree (it must have been built).
     KdTree,
+    /// The compressed 8-wide BVH (it must have been built: `Tracer::with_bvh`).
+    Bvh,
 }
 
 /// How many rays one thread traces together.
@@ -60,6 +62,10 @@ impl Accel {
     /// The brute-force oracle.
     pub const BRUTE: Accel = Accel { structure: Structure::Brute, traversal: Algorithm::Stack, grouping: Grouping::Single, pipeline: Pipeline::Monolithic };
 
+    /// The compressed 8-wide BVH, one ray per thread (its traversal is its own: `traversal`
+    /// is not used).
+    pub const BVH: Accel = Accel { structure: Structure::Bvh, traversal: Algorithm::Stack, grouping: Grouping::Single, pipeline: Pipeline::Monolithic };
+
     /// A kd traversal, one ray per thread.
     pub const fn kd(traversal: Algorithm) -> Accel {
         Accel { structure: Structure::KdTree, traversal, grouping: Grouping::Single, pipeline: Pipeline::Monolithic }
@@ -75,8 +81,8 @@ impl Accel {
         Accel { structure: Structure::KdTree, traversal: Algorithm::Stack, grouping: Grouping::Single, pipeline: Pipeline::Decomposed { capacity } }
     }
 
-    /// `brute`, `stack`, `restart`, `pushdown`, `shortstack` (= `shortstack:3`), `shortstack:N`,
-    /// any kd traversal followed by `+packets`, or `decomposed[:CAPACITY]`.
+    /// `brute`, `bvh`, `stack`, `restart`, `pushdown`, `shortstack` (= `shortstack:3`),
+    /// `shortstack:N`, any kd traversal followed by `+packets`, or `decomposed[:CAPACITY]`.
     pub fn parse(s: &str) -> Result<Accel> {
         if let Some(alg) = s.strip_suffix("+packets") {
             let a = Accel::parse(alg)?;
@@ -95,6 +101,7 @@ impl Accel {
         }
         Ok(match s {
             "brute" => Accel::BRUTE,
+            "bvh" => Accel::BVH,
             "stack" => Accel::kd(Algorithm::Stack),
             "restart" => Accel::kd(Algorithm::Restart),
             "pushdown" => Accel::kd(Algorithm::PushDown),
@@ -102,7 +109,7 @@ impl Accel {
             s => match s.strip_prefix("shortstack:").map(str::parse::<u32>) {
                 Some(Ok(n)) if (1..=MAX_SHORT_STACK).contains(&n) => Accel::kd(Algorithm::ShortStack(n)),
                 _ => bail!(InvalidInput:
-                    "unknown traversal '{s}': use brute, stack, restart, pushdown, shortstack or shortstack:N (N = 1..={MAX_SHORT_STACK}), optionally +packets, or decomposed[:CAPACITY]"
+                    "unknown traversal '{s}': use brute, bvh, stack, restart, pushdown, shortstack or shortstack:N (N = 1..={MAX_SHORT_STACK}), optionally +packets, or decomposed[:CAPACITY]"
                 ),
             },
         })
@@ -113,6 +120,7 @@ impl Accel {
     pub fn name(&self) -> String {
         match (self.structure, self.grouping, self.pipeline) {
             (Structure::Brute, _, _) => "brute".into(),
+            (Structure::Bvh, _, _) => "bvh".into(),
             (_, _, Pipeline::Decomposed { capacity }) => format!("decomposed:{capacity}"),
             (_, Grouping::Single, _) => alg_name(self.traversal),
             (_, Grouping::Packet4, _) => format!("{}+packets", alg_name(self.traversal)),
@@ -133,17 +141,22 @@ impl Accel {
     }
 
     /// The query kernels' method where rays go one per thread and one kernel per query (brute
-    /// force or a single-ray kd traversal; `None` for packets and the decomposed pipeline).
+    /// force, a single-ray kd traversal or the BVH; `None` for packets and the decomposed
+    /// pipeline).
     pub fn one_ray_method(self) -> Option<TraceMethod> {
         if self.pipeline != Pipeline::Monolithic || self.grouping != Grouping::Single {
             return None;
         }
-        Some(if self.structure == Structure::Brute { TraceMethod::Brute } else { TraceMethod::Single(self.traversal) })
+        Some(match self.structure {
+            Structure::Brute => TraceMethod::Brute,
+            Structure::KdTree => TraceMethod::Single(self.traversal),
+            Structure::Bvh => TraceMethod::Bvh,
+        })
     }
 
     /// The method of a whole-path kernel family (entry points `<prefix>_<method>`: photon or
     /// eye paths) for this way of finding hits, if the module has that entry point (brute
-    /// force, full stack, short stack of 3).
+    /// force, full stack, short stack of 3, the BVH).
     pub fn whole_path_method(self, prefix: &str) -> Option<TraceMethod> {
         let m = self.one_ray_method()?;
         let info = crate::runtime::module::module_info().ok()?;
@@ -153,6 +166,11 @@ impl Accel {
     /// Whether a kd-tree is needed.
     pub fn needs_tree(self) -> bool {
         self.structure == Structure::KdTree
+    }
+
+    /// Whether the wide BVH is needed.
+    pub fn needs_bvh(self) -> bool {
+        self.structure == Structure::Bvh
     }
 
     /// The brute-force oracle and every single-ray kd traversal the GPU module has a kernel

@@ -23,6 +23,7 @@ fn trace4<Q: Query + BruteForce, S: Stats>(tree: &KdTree, accel: Accel, rays: &[
     let mut q = rays.each_ref().map(Q::new);
     match (accel.structure, accel.grouping, accel.pipeline) {
         (Structure::Brute, _, _) => q.iter_mut().zip(rays).for_each(|(q, r)| q.brute(r, tree.tris)),
+        (Structure::Bvh, _, _) => panic!("the BVH's counts are `bvh_counts`"),
         (_, _, Pipeline::Decomposed { capacity }) => {
             for (q, r) in q.iter_mut().zip(rays) {
                 let l = kdtree::record_leaves(tree, r, capacity, stats);
@@ -57,6 +58,25 @@ pub fn counts(tris: &[Triangle], tree: &KdTreeData, accel: Accel, rays: &[Ray], 
             s
         })
         .collect())
+}
+
+/// Traversal counters of the wide BVH (closest hit if `closest`, else any hit), one per group
+/// of four rays in order (summed over the four), like `counts`.
+pub fn bvh_counts(bvh: &crate::bvh::BvhData, rays: &[Ray], closest: bool) -> Vec<Counters> {
+    let b = kdray_shared::bvh::Bvh { nodes: &bvh.nodes, tris: &bvh.tris };
+    rays.par_chunks(PACKET)
+        .map(|c| {
+            let mut s = Counters::default();
+            for r in c {
+                if closest {
+                    kdray_shared::bvh::traverse(&b, r, &mut Closest::new(r), &mut s);
+                } else {
+                    kdray_shared::bvh::traverse(&b, r, &mut AnyHit::new(r), &mut s);
+                }
+            }
+            s
+        })
+        .collect()
 }
 
 /// How many rays the decomposed pipeline with `capacity` leaves per list must finish with

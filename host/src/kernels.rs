@@ -11,7 +11,9 @@ use bytemuck::Pod;
 use kdray_shared::kdtree::{KdNode, KdTree, LeafRef, PacketTraversal, Traversal, WithTraversal, PACKET};
 use kdray_shared::query::{AnyHit, Answer, Closest, Query};
 use kdray_shared::brute::BruteForce;
-use kdray_shared::trace::{self, Brute, Kd};
+use kdray_shared::aabb::Aabb;
+use kdray_shared::bvh::{Bvh, BvhNode};
+use kdray_shared::trace::{self, Brute, Kd, Method, Wide};
 use kdray_shared::photon::{self, HashGrid, KdCells};
 use kdray_shared::{
     render, sort, Hit, IndexParams, ItemParams, LeafCells, Light, Material, PathState, Photon, PhotonParams, PhotonPath, Ray, RenderParams,
@@ -32,34 +34,81 @@ impl QueryKind for AnyHit {
     const PREFIX: &'static str = "any";
 }
 
-/// The scene as the ray-query kernels bind it.
+/// The scene as the ray-query kernels bind it: the triangles and the structure's two arrays.
 pub struct SceneBinds<'a> {
-    /// The triangles.
+    /// The triangles (`Hit::prim` indexes them).
     pub tris: &'a Buffer<Triangle>,
-    /// The kd-tree's nodes (`nodes[0]` is the root).
-    pub nodes: &'a Buffer<KdNode>,
-    /// The primitive index list: each leaf holds a range of it, each entry an index into `tris`.
-    pub prims: &'a Buffer<u32>,
+    /// The acceleration structure's arrays.
+    pub structure: StructureBinds<'a>,
+}
+
+/// An acceleration structure's arrays as kernels bind them.
+#[derive(Copy, Clone)]
+pub enum StructureBinds<'a> {
+    /// The kd-tree (bound as `nodes`, `prims`; brute force binds placeholders).
+    Kd {
+        /// The kd-tree's nodes (`nodes[0]` is the root).
+        nodes: &'a Buffer<KdNode>,
+        /// The primitive index list: each leaf holds a range of it, each entry an index into `tris`.
+        prims: &'a Buffer<u32>,
+    },
+    /// The compressed wide BVH (bound as `bvh`, `bvh_tris`).
+    Bvh {
+        /// The BVH's nodes (`nodes[0]` is the root).
+        nodes: &'a Buffer<BvhNode>,
+        /// The triangles in leaf order, each with its scene index in `_pad`.
+        tris: &'a Buffer<Triangle>,
+    },
 }
 
 impl<'a> SceneBinds<'a> {
-    /// The scene as a kernel's native twin sees it.
+    /// The kd-tree as a kernel's native twin sees it.
     ///
     /// # Safety
     /// As `Buffer::host`: only inside `Kernel::run` of a native dispatch that binds these.
     unsafe fn tree(&self, p: &TraceParams) -> KdTree<'a> {
         // SAFETY: the caller's contract.
-        unsafe { trace::tree(p, self.tris.host(), self.nodes.host(), self.prims.host()) }
+        unsafe { KdTree::view(self, Aabb { min: p.bounds_min, max: p.bounds_max }) }
     }
 
     fn binds(&self) -> [Bind<'a>; 3] {
-        [read("tris", self.tris), read("nodes", self.nodes), read("prims", self.prims)]
+        match self.structure {
+            StructureBinds::Kd { nodes, prims } => [read("tris", self.tris), read("nodes", nodes), read("prims", prims)],
+            StructureBinds::Bvh { nodes, tris } => [read("tris", self.tris), read("bvh", nodes), read("bvh_tris", tris)],
+        }
     }
 }
 
-type TraceFn<'s, O> = fn(u32, &TraceParams, &[Ray], &KdTree, &mut HostStore<'s, O>);
+/// A structure's view (`Method::Accel`) as a kernel's native twin builds it from the bound
+/// buffers.
+trait View<'a>: Sized {
+    /// # Safety
+    /// As `Buffer::host`: only inside `Kernel::run` of a native dispatch that binds `s`.
+    unsafe fn view(s: &SceneBinds<'a>, bounds: Aabb) -> Self;
+}
 
-/// How a trace kernel finds hits: brute force, or a kd traversal one ray per thread, or four.
+impl<'a> View<'a> for KdTree<'a> {
+    unsafe fn view(s: &SceneBinds<'a>, bounds: Aabb) -> Self {
+        match s.structure {
+            // SAFETY: the caller's contract.
+            StructureBinds::Kd { nodes, prims } => unsafe { KdTree { nodes: nodes.host(), prims: prims.host(), tris: s.tris.host(), bounds } },
+            StructureBinds::Bvh { .. } => panic!("a kd-tree or brute-force kernel bound to a BVH"),
+        }
+    }
+}
+
+impl<'a> View<'a> for Bvh<'a> {
+    unsafe fn view(s: &SceneBinds<'a>, _bounds: Aabb) -> Self {
+        match s.structure {
+            // SAFETY: the caller's contract.
+            StructureBinds::Bvh { nodes, tris } => unsafe { Bvh { nodes: nodes.host(), tris: tris.host() } },
+            StructureBinds::Kd { .. } => panic!("a BVH kernel bound to a kd-tree"),
+        }
+    }
+}
+
+/// How a trace kernel finds hits: brute force, a kd traversal one ray per thread or four, or
+/// the wide BVH.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub enum TraceMethod {
     /// Every triangle for every ray (the tree is not used).
@@ -69,6 +118,8 @@ pub enum TraceMethod {
     /// The packet form of the given kd traversal: four rays per thread, traversed together where
     /// their direction signs agree, else one by one.
     Packet(kdray_shared::kdtree::Algorithm),
+    /// The compressed 8-wide BVH, one ray per thread.
+    Bvh,
 }
 
 /// Closest-hit or any-hit queries for `params.count` rays (`trace::trace` / `trace::trace_packet`).
@@ -83,17 +134,40 @@ pub struct Trace<'a, Q: QueryKind> {
     pub out: &'a Buffer<Q::Out>,
     entry: String,
     packet: bool,
-    cpu: TraceFn<'a, Q::Out>,
+    cpu: TraceRun<'a, Q>,
+}
+
+/// A trace kernel's native twin over threads `ts`, with the method's view of the scene.
+type TraceRun<'a, Q> = fn(&Trace<'a, Q>, std::ops::Range<u32>);
+
+fn run_trace<'a, M: Method, Q: QueryKind>(k: &Trace<'a, Q>, ts: std::ops::Range<u32>)
+where
+    M::Accel<'a>: View<'a>,
+{
+    // SAFETY: called by the native runtime during the dispatch of this pass, which holds its
+    // bindings; thread t writes only out[t].
+    let (rays, view, mut out) = unsafe { (k.rays.host(), M::Accel::view(&k.scene, Aabb { min: k.params.bounds_min, max: k.params.bounds_max }), k.out.host_store()) };
+    for t in ts {
+        trace::trace::<M, Q, HostStore<'a, Q::Out>>(t, &k.params, rays, &view, &mut out)
+    }
+}
+
+fn run_packets<'a, T: PacketTraversal, Q: QueryKind>(k: &Trace<'a, Q>, ts: std::ops::Range<u32>) {
+    // SAFETY: as `run_trace`; thread t writes only out[4t..4t+4].
+    let (rays, tree, mut out) = unsafe { (k.rays.host(), k.scene.tree(&k.params), k.out.host_store()) };
+    for t in ts {
+        trace::trace_packet::<T, Q, HostStore<'a, Q::Out>>(t, &k.params, rays, &tree, &mut out)
+    }
 }
 
 struct Pick<'s, Q>(bool, PhantomData<&'s Q>);
 impl<'s, Q: QueryKind> WithTraversal for Pick<'s, Q> {
-    type Out = TraceFn<'s, Q::Out>;
-    fn call<T: Traversal + PacketTraversal>(self) -> TraceFn<'s, Q::Out> {
+    type Out = TraceRun<'s, Q>;
+    fn call<T: Traversal + PacketTraversal>(self) -> TraceRun<'s, Q> {
         if self.0 {
-            trace::trace_packet::<T, Q, HostStore<'s, Q::Out>>
+            run_packets::<T, Q>
         } else {
-            trace::trace::<Kd<T>, Q, HostStore<'s, Q::Out>>
+            run_trace::<Kd<T>, Q>
         }
     }
 }
@@ -103,10 +177,11 @@ impl<'a, Q: QueryKind> Trace<'a, Q> {
     /// (e.g. `closest_stack`) and the matching native function.
     pub fn new(method: TraceMethod, params: TraceParams, rays: &'a Buffer<Ray>, scene: SceneBinds<'a>, out: &'a Buffer<Q::Out>) -> Self {
         use kdray_shared::kdtree::with_traversal;
-        let (packet, cpu): (bool, TraceFn<'a, Q::Out>) = match method {
-            TraceMethod::Brute => (false, trace::trace::<Brute, Q, HostStore<'a, Q::Out>>),
+        let (packet, cpu): (bool, TraceRun<'a, Q>) = match method {
+            TraceMethod::Brute => (false, run_trace::<Brute, Q>),
             TraceMethod::Single(a) => (false, with_traversal(a, Pick::<'a, Q>(false, PhantomData))),
             TraceMethod::Packet(a) => (true, with_traversal(a, Pick::<'a, Q>(true, PhantomData))),
+            TraceMethod::Bvh => (false, run_trace::<Wide, Q>),
         };
         Trace { params, rays, scene, out, entry: format!("{}_{}", Q::PREFIX, method.suffix()), packet, cpu }
     }
@@ -119,6 +194,7 @@ impl TraceMethod {
             TraceMethod::Brute => "brute".into(),
             TraceMethod::Single(a) => kernel_suffix(a),
             TraceMethod::Packet(a) => format!("packet_{}", kernel_suffix(a)),
+            TraceMethod::Bvh => "bvh".into(),
         }
     }
 }
@@ -158,12 +234,7 @@ impl<Q: QueryKind> Kernel for Trace<'_, Q> {
         self.run_many(t..t + 1)
     }
     fn run_many(&self, ts: std::ops::Range<u32>) {
-        // SAFETY: called by the native runtime during the dispatch of this pass, which holds
-        // its bindings; thread t writes only out[t] (out[4t..4t+4] for packets).
-        let (rays, tree, mut out) = unsafe { (self.rays.host(), self.scene.tree(&self.params), self.out.host_store()) };
-        for t in ts {
-            (self.cpu)(t, &self.params, rays, &tree, &mut out)
-        }
+        (self.cpu)(self, ts)
     }
 }
 
@@ -904,18 +975,36 @@ impl Kernel for Gather<'_> {
     }
 }
 
-type PhotonFn<'s> = fn(u32, &PhotonParams, &KdTree, &[Light], &[Material], &mut HostStore<'s, Photon>, &mut HostStore<'s, u32>);
+/// A whole-path photon kernel's native twin over threads `ts`.
+type PhotonRun<'a> = fn(&TracePhotons<'a>, std::ops::Range<u32>);
+
+fn run_photons<'a, M: Method>(k: &TracePhotons<'a>, ts: std::ops::Range<u32>)
+where
+    M::Accel<'a>: View<'a>,
+{
+    // SAFETY: called by the native runtime during the dispatch of this pass, which holds its
+    // bindings; items write only the photon slots they take from the counter atomically.
+    unsafe {
+        let p = &k.params;
+        let accel = M::Accel::view(&k.scene, Aabb { min: p.bounds_min, max: p.bounds_max });
+        let (tris, lights, materials) = (k.scene.tris.host(), k.lights.host(), k.materials.host());
+        let (mut photons, mut counter) = (k.photons.host_store(), k.counter.host_store());
+        for t in ts {
+            photon::trace_photon::<M, HostStore<'a, Photon>, HostStore<'a, u32>>(t, p, &accel, tris, lights, materials, &mut photons, &mut counter)
+        }
+    }
+}
 
 struct PickPhotons<'s>(PhantomData<&'s ()>);
 impl<'s> WithTraversal for PickPhotons<'s> {
-    type Out = PhotonFn<'s>;
-    fn call<T: Traversal + PacketTraversal>(self) -> PhotonFn<'s> {
-        photon::trace_photon::<Kd<T>, HostStore<'s, Photon>, HostStore<'s, u32>>
+    type Out = PhotonRun<'s>;
+    fn call<T: Traversal + PacketTraversal>(self) -> PhotonRun<'s> {
+        run_photons::<Kd<T>>
     }
 }
 
 /// Whole photon paths, emission to absorption, one photon per thread (`photon::trace_photon`):
-/// brute force or a kd traversal, one ray at a time.
+/// brute force, a kd traversal or the BVH, one ray at a time.
 pub struct TracePhotons<'a> {
     /// The dispatch's photons, photons per pass, seed, lights, bounce limit, record capacity and
     /// scene box.
@@ -932,7 +1021,7 @@ pub struct TracePhotons<'a> {
     /// `params.capacity` (which are not stored).
     pub counter: &'a Buffer<u32>,
     entry: String,
-    cpu: PhotonFn<'a>,
+    cpu: PhotonRun<'a>,
 }
 
 impl<'a> TracePhotons<'a> {
@@ -950,9 +1039,10 @@ impl<'a> TracePhotons<'a> {
         photons: &'a Buffer<Photon>,
         counter: &'a Buffer<u32>,
     ) -> Option<Self> {
-        let cpu: PhotonFn<'a> = match method {
-            TraceMethod::Brute => photon::trace_photon::<Brute, HostStore<'a, Photon>, HostStore<'a, u32>>,
+        let cpu: PhotonRun<'a> = match method {
+            TraceMethod::Brute => run_photons::<Brute>,
             TraceMethod::Single(a) => kdray_shared::kdtree::with_traversal(a, PickPhotons(PhantomData)),
+            TraceMethod::Bvh => run_photons::<Wide>,
             TraceMethod::Packet(_) => return None,
         };
         Some(TracePhotons { params, lights, scene, materials, photons, counter, entry: format!("{}_{}", Self::PREFIX, method.suffix()), cpu })
@@ -977,37 +1067,40 @@ impl Kernel for TracePhotons<'_> {
         self.run_many(t..t + 1)
     }
     fn run_many(&self, ts: std::ops::Range<u32>) {
-        // SAFETY: called by the native runtime during the dispatch of this pass, which holds
-        // its bindings; items write only the photon slots they take from the counter atomically.
-        unsafe {
-            let p = &self.params;
-            let tree = KdTree {
-                nodes: self.scene.nodes.host(),
-                prims: self.scene.prims.host(),
-                tris: self.scene.tris.host(),
-                bounds: kdray_shared::aabb::Aabb { min: p.bounds_min, max: p.bounds_max },
-            };
-            let (lights, materials) = (self.lights.host(), self.materials.host());
-            let (mut photons, mut counter) = (self.photons.host_store(), self.counter.host_store());
-            for t in ts {
-                (self.cpu)(t, p, &tree, lights, materials, &mut photons, &mut counter)
-            }
+        (self.cpu)(self, ts)
+    }
+}
+
+/// A whole-path eye kernel's native twin over threads `ts`.
+type PathRun<'a> = fn(&TracePaths<'a>, std::ops::Range<u32>);
+
+fn run_paths<'a, M: Method>(k: &TracePaths<'a>, ts: std::ops::Range<u32>)
+where
+    M::Accel<'a>: View<'a>,
+{
+    // SAFETY: called by the native runtime during the dispatch of this pass, which holds its
+    // bindings; item t writes rays[t], paths[t] and primary_hits[t] only.
+    unsafe {
+        let b = k.scene_box.host();
+        let accel = M::Accel::view(&k.scene, Aabb { min: [b[0][0], b[0][1], b[0][2]], max: [b[1][0], b[1][1], b[1][2]] });
+        let (tris, materials, lights) = (k.scene.tris.host(), k.materials.host(), k.lights.host());
+        let (mut rays, mut paths, mut hits) = (k.rays.host_store(), k.paths.host_store(), k.primary_hits.host_store());
+        for t in ts {
+            render::trace_path::<M, HostStore<'a, Ray>, HostStore<'a, PathState>, HostStore<'a, Hit>>(t, &k.params, &accel, tris, materials, lights, &mut rays, &mut paths, &mut hits)
         }
     }
 }
 
-type PathFn<'s> = fn(u32, &RenderParams, &KdTree, &[Material], &[Light], &mut HostStore<'s, Ray>, &mut HostStore<'s, PathState>, &mut HostStore<'s, Hit>);
-
 struct PickPaths<'s>(PhantomData<&'s ()>);
 impl<'s> WithTraversal for PickPaths<'s> {
-    type Out = PathFn<'s>;
-    fn call<T: Traversal + PacketTraversal>(self) -> PathFn<'s> {
-        render::trace_path::<Kd<T>, HostStore<'s, Ray>, HostStore<'s, PathState>, HostStore<'s, Hit>>
+    type Out = PathRun<'s>;
+    fn call<T: Traversal + PacketTraversal>(self) -> PathRun<'s> {
+        run_paths::<Kd<T>>
     }
 }
 
 /// Whole eye paths, camera to end, one pixel sample per thread (`render::trace_path`): brute
-/// force or a kd traversal, one ray at a time.
+/// force, a kd traversal or the BVH, one ray at a time.
 pub struct TracePaths<'a> {
     /// The batch, camera, seed, lights, bounce limits and flags.
     pub params: RenderParams,
@@ -1026,7 +1119,7 @@ pub struct TracePaths<'a> {
     /// Written: each path's closest hit at bounce 0.
     pub primary_hits: &'a Buffer<Hit>,
     entry: String,
-    cpu: PathFn<'a>,
+    cpu: PathRun<'a>,
 }
 
 impl<'a> TracePaths<'a> {
@@ -1046,9 +1139,10 @@ impl<'a> TracePaths<'a> {
         paths: &'a Buffer<PathState>,
         primary_hits: &'a Buffer<Hit>,
     ) -> Option<Self> {
-        let cpu: PathFn<'a> = match method {
-            TraceMethod::Brute => render::trace_path::<Brute, HostStore<'a, Ray>, HostStore<'a, PathState>, HostStore<'a, Hit>>,
+        let cpu: PathRun<'a> = match method {
+            TraceMethod::Brute => run_paths::<Brute>,
             TraceMethod::Single(a) => kdray_shared::kdtree::with_traversal(a, PickPaths(PhantomData)),
+            TraceMethod::Bvh => run_paths::<Wide>,
             TraceMethod::Packet(_) => return None,
         };
         Some(TracePaths { params, scene_box, scene, materials, lights, rays, paths, primary_hits, entry: format!("{}_{}", Self::PREFIX, method.suffix()), cpu })
@@ -1083,21 +1177,6 @@ impl Kernel for TracePaths<'_> {
         self.run_many(t..t + 1)
     }
     fn run_many(&self, ts: std::ops::Range<u32>) {
-        // SAFETY: called by the native runtime during the dispatch of this pass, which holds
-        // its bindings; item t writes rays[t], paths[t] and primary_hits[t] only.
-        unsafe {
-            let b = self.scene_box.host();
-            let tree = KdTree {
-                nodes: self.scene.nodes.host(),
-                prims: self.scene.prims.host(),
-                tris: self.scene.tris.host(),
-                bounds: kdray_shared::aabb::Aabb { min: [b[0][0], b[0][1], b[0][2]], max: [b[1][0], b[1][1], b[1][2]] },
-            };
-            let (materials, lights) = (self.materials.host(), self.lights.host());
-            let (mut rays, mut paths, mut hits) = (self.rays.host_store(), self.paths.host_store(), self.primary_hits.host_store());
-            for t in ts {
-                (self.cpu)(t, &self.params, &tree, materials, lights, &mut rays, &mut paths, &mut hits)
-            }
-        }
+        (self.cpu)(self, ts)
     }
 }

@@ -39,6 +39,7 @@ pub mod analysis;
 pub mod gpu;
 pub mod image_out;
 pub mod integrator;
+pub mod bvh;
 pub mod kdtree;
 pub mod kernels;
 pub mod runtime;

@@ -4,18 +4,20 @@
 //! from `query_passes`; nothing here knows which runtime it runs on.
 use crate::accel::{Accel, Grouping, Pipeline, Structure};
 use crate::kdtree::KdTreeData;
-use crate::kernels::{Fallback, IntersectListed, QueryKind, SceneBinds, Trace, TraceMethod, TraverseLeaves};
+use crate::bvh::BvhData;
+use crate::kernels::{Fallback, IntersectListed, QueryKind, SceneBinds, StructureBinds, Trace, TraceMethod, TraverseLeaves};
 use crate::runtime::{cast, Buffer, Kernel, RawBuffer, Runtime};
 use crate::scene::Scene;
 use crate::error::{bail, Result};
 use kdray_shared::aabb::Aabb;
+use kdray_shared::bvh::BvhNode;
 use kdray_shared::kdtree::{KdNode, LeafRef};
 use kdray_shared::query::{AnyHit, Closest};
 use kdray_shared::{Hit, Light, Material, Ray, TraceParams, Triangle};
 
 /// Upper bound on ray-triangle tests of one brute-force submission.
 const MAX_TESTS_PER_SUBMIT: u64 = 1 << 30;
-/// Upper bound on rays of one kd-tree submission (each visits O(log N) nodes).
+/// Upper bound on rays of one kd-tree or BVH submission (each visits O(log N) nodes).
 const MAX_KD_RAYS_PER_SUBMIT: u64 = 1 << 22;
 /// Rays per batch on the native runtime (bounds the decomposed pipeline's leaf lists).
 const NATIVE_BATCH: u64 = 1 << 18;
@@ -33,6 +35,14 @@ pub enum AccelStructure {
         /// The tree's root cell.
         bounds: Aabb,
     },
+}
+
+/// The compressed wide BVH's arrays (`BvhData`) on a runtime.
+pub struct BvhBuffers {
+    /// The nodes.
+    pub nodes: Buffer<BvhNode>,
+    /// The triangles in leaf order, each with its scene index in `_pad`.
+    pub tris: Buffer<Triangle>,
 }
 
 /// The decomposed pipeline's per-batch buffers: leaf lists (`capacity` entries per ray) and
@@ -58,6 +68,8 @@ pub struct Tracer<'r> {
     pub lights: Buffer<Light>,
     /// A kd-tree if `new` was given one, else only brute force.
     pub structure: AccelStructure,
+    /// The wide BVH, if `with_bvh` added one.
+    pub bvh: Option<BvhBuffers>,
     /// The traversals' root box (min, max; `trace_bounds`) for the whole-path kernels.
     pub scene_box: Buffer<[f32; 4]>,
     /// Bound in place of the tree's arrays by kernels that do not use them (brute force).
@@ -105,6 +117,7 @@ impl<'r> Tracer<'r> {
             materials: rt.upload("material", &scene.materials)?,
             lights: rt.upload("light", &lights)?,
             structure,
+            bvh: None,
             no_nodes: rt.alloc("no kd-tree nodes", 1)?,
             no_prims: rt.alloc("no kd-tree primitives", 1)?,
             scene_bounds: Aabb { min: lo.to_array(), max: hi.to_array() },
@@ -113,6 +126,15 @@ impl<'r> Tracer<'r> {
             tri_count: scene.triangles.len() as u64,
             pool: std::sync::Mutex::new(Vec::new()),
         })
+    }
+
+    /// Adds the compressed wide BVH `bvh` (built by `bvh::try_build` over this scene's
+    /// triangles): `Accel::BVH` then runs. It is checked first (`BvhData::validate`), since
+    /// the kernels trust it.
+    pub fn with_bvh(mut self, bvh: &BvhData) -> Result<Self> {
+        bvh.validate(self.tri_count as usize)?;
+        self.bvh = Some(BvhBuffers { nodes: self.rt.upload("BVH node", &bvh.nodes)?, tris: self.rt.upload("BVH triangle", &bvh.tris)? });
+        Ok(self)
     }
 
     /// The box the traversals start from (the kd-tree's root cell, else the scene's box).
@@ -139,15 +161,22 @@ impl<'r> Tracer<'r> {
         if accel.structure == Structure::KdTree && matches!(self.structure, AccelStructure::Triangles) {
             bail!(InvalidInput: "no kd-tree was built for this scene");
         }
+        if accel.structure == Structure::Bvh && self.bvh.is_none() {
+            bail!(InvalidInput: "no BVH was built for this scene");
+        }
         Ok(())
     }
 
-    /// The scene's buffers as the ray-query kernels bind them.
-    pub fn scene_binds(&self) -> SceneBinds<'_> {
-        match &self.structure {
-            AccelStructure::KdTree { nodes, prims, .. } => SceneBinds { tris: &self.tris, nodes, prims },
-            AccelStructure::Triangles => SceneBinds { tris: &self.tris, nodes: &self.no_nodes, prims: &self.no_prims },
-        }
+    /// The scene's buffers as the ray-query kernels of `accel` bind them (brute force binds
+    /// placeholders for the kd-tree's; `check(accel)` first: a structure that was not built
+    /// binds placeholders too).
+    pub fn scene_binds(&self, accel: Accel) -> SceneBinds<'_> {
+        let structure = match (accel.structure, &self.structure, &self.bvh) {
+            (Structure::Bvh, _, Some(b)) => StructureBinds::Bvh { nodes: &b.nodes, tris: &b.tris },
+            (Structure::KdTree, AccelStructure::KdTree { nodes, prims, .. }, _) => StructureBinds::Kd { nodes, prims },
+            _ => StructureBinds::Kd { nodes: &self.no_nodes, prims: &self.no_prims },
+        };
+        SceneBinds { tris: &self.tris, structure }
     }
 
     /// The method of `accel`'s whole-path kernel family `prefix` on this runtime
@@ -186,7 +215,7 @@ impl<'r> Tracer<'r> {
         let by_binding = self.rt.max_binding() / record;
         let mut by_work = match accel.structure {
             Structure::Brute => (MAX_TESTS_PER_SUBMIT / self.tri_count.max(1)).max(4096),
-            Structure::KdTree => MAX_KD_RAYS_PER_SUBMIT,
+            Structure::KdTree | Structure::Bvh => MAX_KD_RAYS_PER_SUBMIT,
         };
         if self.rt.is_native() {
             by_work = by_work.min(NATIVE_BATCH);
@@ -229,7 +258,7 @@ impl<'r> Tracer<'r> {
             }
         }
         let params = self.params(accel, count);
-        let scene = || self.scene_binds();
+        let scene = || self.scene_binds(accel);
         Ok(match (accel.structure, accel.grouping, accel.pipeline) {
             (Structure::KdTree, _, Pipeline::Decomposed { .. }) => {
                 let Some(l) = lists else { bail!(InvalidInput: "the decomposed pipeline needs leaf-list buffers") };
@@ -240,6 +269,7 @@ impl<'r> Tracer<'r> {
                 ]
             }
             (Structure::Brute, _, _) => vec![Box::new(Trace::<Q>::new(TraceMethod::Brute, params, rays, scene(), out))],
+            (Structure::Bvh, _, _) => vec![Box::new(Trace::<Q>::new(TraceMethod::Bvh, params, rays, scene(), out))],
             (Structure::KdTree, Grouping::Single, _) => vec![Box::new(Trace::<Q>::new(TraceMethod::Single(accel.traversal), params, rays, scene(), out))],
             (Structure::KdTree, Grouping::Packet4, _) => vec![Box::new(Trace::<Q>::new(TraceMethod::Packet(accel.traversal), params, rays, scene(), out))],
         })

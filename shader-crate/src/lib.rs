@@ -35,6 +35,19 @@ pub use photon::*;
 use kdray_shared::kernel::AtomicStore;
 use spirv_std::glam::UVec3;
 
+/// The kd-tree (or, for brute force, the triangles) as the whole-path kernels see it.
+#[inline(always)]
+pub fn kd_view<'a>(bounds: kdray_shared::aabb::Aabb, tris: &'a [kdray_shared::Triangle], nodes: &'a [kdray_shared::kdtree::KdNode], prims: &'a [u32]) -> kdray_shared::kdtree::KdTree<'a> {
+    kdray_shared::kdtree::KdTree { nodes, prims, tris, bounds }
+}
+
+/// The wide BVH as the whole-path kernels see it (its nodes and leaf-ordered triangles; the
+/// scene's box and triangles are not part of it).
+#[inline(always)]
+pub fn bvh_view<'a>(_bounds: kdray_shared::aabb::Aabb, _tris: &'a [kdray_shared::Triangle], bvh: &'a [kdray_shared::bvh::BvhNode], bvh_tris: &'a [kdray_shared::Triangle]) -> kdray_shared::bvh::Bvh<'a> {
+    kdray_shared::bvh::Bvh { nodes: bvh, tris: bvh_tris }
+}
+
 /// Threads per workgroup (`#[spirv(compute(threads(64)))]` on every entry point).
 pub const WORKGROUP: u32 = 64;
 

@@ -1,11 +1,12 @@
 //! Photon mapping's entry points (`kdray_shared::photon`): emission, one bounce, whole photon
-//! paths (emission to absorption in one thread, for brute force and two kd traversals), the
+//! paths (emission to absorption in one thread, for brute force, two kd traversals and the BVH), the
 //! index's keys and permutation, and the gather, for both photon indices (hashed grid, kd
 //! leaves).
 use crate::Atomics;
 use kdray_shared::aabb::Aabb;
-use kdray_shared::kdtree::{Full, KdNode, KdTree, Short};
-use kdray_shared::trace::{Brute, Kd};
+use kdray_shared::bvh::BvhNode;
+use kdray_shared::kdtree::{Full, KdNode, Short};
+use kdray_shared::trace::{Brute, Kd, Wide};
 use kdray_shared::photon::{self, HashGrid, KdCells};
 use kdray_shared::{Hit, IndexParams, LeafCells, Light, Material, PathState, Photon, PhotonParams, PhotonPath, Ray, Triangle};
 use spirv_std::glam::UVec3;
@@ -109,9 +110,10 @@ pub fn gather_kd(
 }
 
 /// One entry point running `photon::trace_photon::<$m>` (a photon from the light to its
-/// absorption per thread).
+/// absorption per thread); `$a`, `$b` are the structure's two buffers (kd: `nodes`, `prims`;
+/// BVH: `bvh`, `bvh_tris`) and `$view` makes the structure's view of them.
 macro_rules! photon_paths {
-    ($name:ident, $m:ty) => {
+    ($name:ident, $m:ty, $a:ident: $at:ty, $b:ident: $bt:ty, $view:ident) => {
         #[spirv(compute(threads(64)))]
         pub fn $name(
             #[spirv(global_invocation_id)] id: UVec3,
@@ -119,18 +121,19 @@ macro_rules! photon_paths {
             #[spirv(push_constant)] params: &PhotonParams,
             #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] lights: &[Light],
             #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] tris: &[Triangle],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] nodes: &[KdNode],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] prims: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] $a: &[$at],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] $b: &[$bt],
             #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] materials: &[Material],
             #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] photons: &mut [Photon],
             #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] counter: &mut [u32],
         ) {
-            let tree = KdTree { nodes, prims, tris, bounds: Aabb { min: params.bounds_min, max: params.bounds_max } };
-            photon::trace_photon::<$m, _, _>(crate::item(id, groups), params, &tree, lights, materials, photons, &mut Atomics(counter));
+            let accel = crate::$view(Aabb { min: params.bounds_min, max: params.bounds_max }, tris, $a, $b);
+            photon::trace_photon::<$m, _, _>(crate::item(id, groups), params, &accel, tris, lights, materials, photons, &mut Atomics(counter));
         }
     };
 }
 
-photon_paths!(photon_paths_brute, Brute);
-photon_paths!(photon_paths_stack, Kd<Full>);
-photon_paths!(photon_paths_shortstack3, Kd<Short<3>>);
+photon_paths!(photon_paths_brute, Brute, nodes: KdNode, prims: u32, kd_view);
+photon_paths!(photon_paths_stack, Kd<Full>, nodes: KdNode, prims: u32, kd_view);
+photon_paths!(photon_paths_shortstack3, Kd<Short<3>>, nodes: KdNode, prims: u32, kd_view);
+photon_paths!(photon_paths_bvh, Wide, bvh: BvhNode, bvh_tris: Triangle, bvh_view);

@@ -8,6 +8,26 @@
 //! elements (item `i` writes element `i`, or its own range), and no buffer is both read as a
 //! slice and written.
 
+/// `s[i]` without the bounds check that rust-gpu puts on every slice index (`IndexUnchecked`
+/// on the GPU, `get_unchecked` natively).
+///
+/// # Safety
+/// `i < s.len()`: the caller proves it (e.g. for a structure the host validated before upload).
+#[inline(always)]
+pub unsafe fn at<T>(s: &[T], i: usize) -> &T {
+    #[cfg(target_arch = "spirv")]
+    {
+        use spirv_std::arch::IndexUnchecked;
+        // SAFETY: the caller's contract.
+        unsafe { s.index_unchecked(i) }
+    }
+    #[cfg(not(target_arch = "spirv"))]
+    {
+        // SAFETY: the caller's contract.
+        unsafe { s.get_unchecked(i) }
+    }
+}
+
 /// Element access to a buffer that a kernel writes (and may read back at its own elements).
 pub trait Store<T: Copy> {
     /// Element `i`.

@@ -19,6 +19,7 @@
 
 pub mod aabb;
 pub mod brute;
+pub mod bvh;
 pub mod camera;
 pub mod kdtree;
 pub mod kernel;

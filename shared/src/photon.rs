@@ -19,7 +19,7 @@
 //!
 //! Random numbers come from the stream (pass seed, bounce, photon): a pass is a function of
 //! its index and the scene only, so passes can run anywhere and be summed.
-use crate::kdtree::{KdNode, KdTree};
+use crate::kdtree::KdNode;
 use crate::query::{Answer, Closest, Query};
 use crate::trace::Method;
 use crate::kernel::{AtomicStore, Store};
@@ -320,7 +320,8 @@ pub fn bounce<R, S, O, C>(
 pub fn trace_photon<M: Method, O: Store<Photon> + ?Sized, C: AtomicStore + ?Sized>(
     i: u32,
     p: &PhotonParams,
-    tree: &KdTree,
+    accel: &M::Accel<'_>,
+    tris: &[Triangle],
     lights: &[Light],
     materials: &[Material],
     photons: &mut O,
@@ -335,9 +336,9 @@ pub fn trace_photon<M: Method, O: Store<Photon> + ?Sized, C: AtomicStore + ?Size
     let mut bounce = 0;
     while bounce <= p.max_bounces && path.flags & PHOTON_ACTIVE != 0 {
         let mut q = Closest::new(&ray);
-        M::find(tree, &ray, &mut q);
+        M::find(accel, &ray, &mut q);
         let hit = q.answer();
-        bounce_step(p, bounce, photon, &mut ray, &hit, tree.tris, materials, &mut path, photons, counter);
+        bounce_step(p, bounce, photon, &mut ray, &hit, tris, materials, &mut path, photons, counter);
         bounce += 1;
     }
 }

@@ -39,6 +39,9 @@ pub trait Query {
     fn open(&self) -> bool;
     /// Whether nothing beyond `t` can change the answer.
     fn finished(&self, t: f32) -> bool;
+    /// The end of the interval still searched: a primitive whose hits all lie beyond it cannot
+    /// change the answer (one at exactly this distance still can: the tie rule).
+    fn bound(&self) -> f32;
 }
 
 impl<Q: Query> Visitor for Q {
@@ -92,6 +95,10 @@ impl Query for Closest {
     fn finished(&self, t: f32) -> bool {
         self.hit.is_hit() && self.hit.t <= t
     }
+    #[inline(always)]
+    fn bound(&self) -> f32 {
+        self.t_max
+    }
 }
 
 /// Any-hit query: whether the ray hits any triangle in its interval.
@@ -121,6 +128,10 @@ impl Query for AnyHit {
     #[inline(always)]
     fn finished(&self, _t: f32) -> bool {
         self.found
+    }
+    #[inline(always)]
+    fn bound(&self) -> f32 {
+        self.t_max
     }
 }
 

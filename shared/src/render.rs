@@ -3,7 +3,6 @@
 //! bounce, or shade with one shadow ray and continue / end / become a gather point),
 //! accumulation once the shadow ray's answer is known, and the film that sums the samples.
 use crate::camera;
-use crate::kdtree::KdTree;
 use crate::query::{Answer, AnyHit, Closest, Query};
 use crate::trace::Method;
 use crate::kernel::Store;
@@ -128,7 +127,8 @@ pub fn rng_fill<O: Store<[u32; 4]> + ?Sized>(i: u32, p: &ItemParams, out: &mut O
 pub fn trace_path<M: Method, R, P, H>(
     i: u32,
     p: &RenderParams,
-    tree: &KdTree,
+    accel: &M::Accel<'_>,
+    tris: &[Triangle],
     materials: &[Material],
     lights: &[Light],
     rays: &mut R,
@@ -149,16 +149,16 @@ pub fn trace_path<M: Method, R, P, H>(
     let mut bounce = 0;
     while bounce <= p.max_bounces && path.is_active() {
         let mut q = Closest::new(&ray);
-        M::find(tree, &ray, &mut q);
+        M::find(accel, &ray, &mut q);
         let hit = q.answer();
         if bounce == 0 {
             primary_hits.store(k, hit);
         }
-        let (shadow, terms) = shade::path_step(p, bounce, &mut ray, &hit, &mut path, tree.tris, materials, lights);
+        let (shadow, terms) = shade::path_step(p, bounce, &mut ray, &hit, &mut path, tris, materials, lights);
         let mut occluded = false;
         if shadow.is_valid() {
             let mut s = AnyHit::new(&shadow);
-            M::find(tree, &shadow, &mut s);
+            M::find(accel, &shadow, &mut s);
             occluded = s.answer() != 0;
         }
         shade::accumulate(&mut path, &terms, occluded);

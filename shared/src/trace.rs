@@ -1,10 +1,11 @@
 //! The ray-query kernels (closest hit, any hit) as per-item functions, generic over how hits
-//! are found (`Method`: brute force or a kd-tree traversal), over the query, and over the
+//! are found (`Method`: brute force, a kd-tree traversal or the wide BVH's), over the query, and over the
 //! grouping (one ray per item, or four per item as a packet) and pipeline (one kernel, or the
 //! decomposed traverse → intersect → fallback). The shader crate instantiates each as an entry
 //! point; the host's native runtime calls the very same functions.
 use crate::aabb::Aabb;
 use crate::brute::BruteForce;
+use crate::bvh::Bvh;
 use crate::kdtree::{intersect_leaves, record_leaves, Full, KdNode, KdTree, LeafRef, PacketTraversal, Traversal, PACKET};
 use crate::kernel::Store;
 use crate::pod::{TraceParams, Triangle};
@@ -13,16 +14,19 @@ use crate::ray::Ray;
 use crate::stats::NoStats;
 use core::marker::PhantomData;
 
-/// How one ray's query is answered over the scene.
+/// How one ray's query is answered over the scene: the structure it searches, as the kernels
+/// see it (`Accel`), and the search.
 pub trait Method {
-    /// Answers `q` for `ray` over the scene `tree` (the brute-force method uses only its
-    /// triangles).
-    fn find<Q: Query + BruteForce>(tree: &KdTree, ray: &Ray, q: &mut Q);
+    /// The structure searched (brute force: the kd-tree view, of which it uses the triangles).
+    type Accel<'a>: Copy;
+    /// Answers `q` for `ray` over `accel`.
+    fn find<Q: Query + BruteForce>(accel: &Self::Accel<'_>, ray: &Ray, q: &mut Q);
 }
 
 /// The brute-force oracle (every triangle; the tree is not used).
 pub struct Brute;
 impl Method for Brute {
+    type Accel<'a> = KdTree<'a>;
     #[inline(always)]
     fn find<Q: Query + BruteForce>(tree: &KdTree, ray: &Ray, q: &mut Q) {
         q.brute(ray, tree.tris)
@@ -32,9 +36,20 @@ impl Method for Brute {
 /// A kd-tree traversal.
 pub struct Kd<T>(PhantomData<T>);
 impl<T: Traversal> Method for Kd<T> {
+    type Accel<'a> = KdTree<'a>;
     #[inline(always)]
     fn find<Q: Query + BruteForce>(tree: &KdTree, ray: &Ray, q: &mut Q) {
         T::run(tree, ray, q, &mut NoStats)
+    }
+}
+
+/// The compressed 8-wide BVH's traversal (`bvh::traverse`).
+pub struct Wide;
+impl Method for Wide {
+    type Accel<'a> = Bvh<'a>;
+    #[inline(always)]
+    fn find<Q: Query + BruteForce>(bvh: &Bvh, ray: &Ray, q: &mut Q) {
+        crate::bvh::traverse(bvh, ray, q, &mut NoStats)
     }
 }
 
@@ -52,7 +67,7 @@ pub fn trace<M: Method, Q: Query + BruteForce + Answer, O: Store<Q::Out> + ?Size
     i: u32,
     p: &TraceParams,
     rays: &[Ray],
-    t: &KdTree,
+    t: &M::Accel<'_>,
     out: &mut O,
 ) {
     if i < p.count {

@@ -87,3 +87,16 @@ pub fn random_dirs(n: usize, seed: u32) -> Vec<[f32; 3]> {
         })
         .collect()
 }
+
+/// `accel` on `t` gives the oracle's answers bit for bit (closest and any hit); the panic names
+/// the first ray that differs.
+pub fn assert_matches_oracle(what: &str, t: &kdray::Tracer, accel: kdray::Accel, rays: &[kdray::Ray], oracle: &[kdray::Hit], oracle_any: &[bool]) {
+    let hits = t.closest_hits(accel, rays).unwrap();
+    let bad: Vec<usize> = (0..rays.len()).filter(|&i| hits[i] != oracle[i]).collect();
+    if let Some(&i) = bad.first() {
+        panic!("{what}: {} differs from the oracle on {} of {} rays; first: {:?} gives {:?}, oracle {:?}", accel.name(), bad.len(), rays.len(), rays[i], hits[i], oracle[i]);
+    }
+    let any = t.any_hits(accel, rays).unwrap();
+    let bad = (0..rays.len()).filter(|&i| any[i] != oracle_any[i]).count();
+    assert_eq!(bad, 0, "{what}: {} any-hit differs from the oracle on {bad} of {} rays", accel.name(), rays.len());
+}

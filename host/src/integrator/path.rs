@@ -150,7 +150,7 @@ pub fn path_passes<'a>(t: &'a Tracer, accel: Accel, p: &RenderParams, fb: &'a Fr
 /// this way of finding hits on this runtime (`Tracer::whole_path_method`).
 pub fn fused_pass<'a>(t: &'a Tracer, accel: Accel, p: &RenderParams, fb: &'a FrameBuffers) -> Option<TracePaths<'a>> {
     let method = t.whole_path_method(accel, TracePaths::PREFIX)?;
-    TracePaths::new(method, *p, &t.scene_box, t.scene_binds(), &t.materials, &t.lights, &fb.rays, &fb.paths, &fb.primary_hits)
+    TracePaths::new(method, *p, &t.scene_box, t.scene_binds(accel), &t.materials, &t.lights, &fb.rays, &fb.paths, &fb.primary_hits)
 }
 
 /// The eye paths of `p` up to their ends: the whole-path kernel if `fused` and there is one,

@@ -343,7 +343,7 @@ impl<'t> PhotonMap<'t> {
         }
         let t = self.t;
         let method = t.whole_path_method(self.accel, TracePhotons::PREFIX)?;
-        TracePhotons::new(method, p, &t.lights, t.scene_binds(), &t.materials, &self.records, &self.counter)
+        TracePhotons::new(method, p, &t.lights, t.scene_binds(self.accel), &t.materials, &self.records, &self.counter)
     }
 
     /// The bounce pass of the photons of dispatch `p` at bounce `bounce`.

@@ -140,8 +140,8 @@ pub enum Command {
         /// Also render on the other device, write `<out>-cpu.png`, and report how the two differ.
         #[arg(long)]
         compare: bool,
-        /// How hits are found: brute (oracle), stack, restart, pushdown, shortstack[:N]
-        /// (default shortstack = shortstack:3).
+        /// How hits are found: brute (oracle), bvh (compressed 8-wide BVH), stack, restart,
+        /// pushdown, shortstack[:N] (kd-tree; default shortstack = shortstack:3).
         #[arg(long)]
         traversal: Option<String>,
         /// Trace rays in packets of four (kd traversals; incoherent packets go ray by ray).
@@ -464,6 +464,7 @@ pub fn run(cli: Cli) -> Result<()> {
             let needs_tree = accel.needs_tree() || (integrator == IntegratorArg::Photon && photon_index == IndexArg::Kd);
             let tree = if needs_tree { Some(build_tree(&scene, &opts)?) } else { None };
             let tree = tree.as_ref();
+            let bvh = if accel.needs_bvh() { Some(build_bvh(&scene)?) } else { None };
             let mut cam = scene.camera.to_pod(size, size);
             if ray_order == RayOrderArg::Tiles {
                 cam.order = kdray_shared::ORDER_TILES;
@@ -491,7 +492,10 @@ pub fn run(cli: Cli) -> Result<()> {
                 None => &NATIVE,
             };
             let render = |rt: &dyn Runtime| -> Result<kdray::RenderOutput> {
-                let t = Tracer::new(rt, &scene, tree)?;
+                let mut t = Tracer::new(rt, &scene, tree)?;
+                if let Some(b) = &bvh {
+                    t = t.with_bvh(b)?;
+                }
                 println!("device: {}, traversal {}", t.device_name(), accel.name());
                 let start = Instant::now();
                 let r = match integrator {
@@ -621,6 +625,22 @@ fn render_accel(traversal: Option<&str>, packets: bool, pipeline: PipelineArg, l
             accel.with_packets().ok_or_else(|| anyhow::anyhow!("--packets applies to the kd traversals, not '{}'", accel.name()))
         }
     }
+}
+
+/// Builds the compressed wide BVH and prints what it cost.
+pub fn build_bvh(scene: &scene::Scene) -> Result<kdray::bvh::BvhData> {
+    let start = Instant::now();
+    let b = kdray::bvh::try_build(&scene.triangles)?;
+    println!(
+        "BVH: {} nodes of 8, {} leaves, depth {}, SAH cost {:.1}, {:.2} MiB, built in {:.3} s",
+        b.nodes.len(),
+        b.leaves,
+        b.depth,
+        b.sah_cost,
+        b.bytes() as f64 / 1048576.0,
+        start.elapsed().as_secs_f64()
+    );
+    Ok(b)
 }
 
 /// Builds the kd-tree and prints what it cost.

@@ -78,6 +78,7 @@ pub fn device_line(g: Option<&Gpu>) -> String {
 pub struct Bed<'a> {
     pub scene: &'a Scene,
     pub tree: &'a KdTreeData,
+    pub bvh: kdray::bvh::BvhData,
     pub cpu: Tracer<'a>,
     pub gpu: Option<(&'a Gpu, Tracer<'a>)>,
     pub size: u32,
@@ -86,14 +87,16 @@ pub struct Bed<'a> {
 
 impl<'a> Bed<'a> {
     pub fn new(scene: &'a Scene, tree: &'a KdTreeData, gpu: Option<&'a Gpu>, size: u32, reps: usize) -> Result<Self> {
+        let bvh = kdray::bvh::try_build(&scene.triangles)?;
         Ok(Bed {
             scene,
             tree,
-            cpu: Tracer::new(&NATIVE, scene, Some(tree))?,
+            cpu: Tracer::new(&NATIVE, scene, Some(tree))?.with_bvh(&bvh)?,
             gpu: match gpu {
-                Some(g) => Some((g, Tracer::new(g, scene, Some(tree))?)),
+                Some(g) => Some((g, Tracer::new(g, scene, Some(tree))?.with_bvh(&bvh)?)),
                 None => None,
             },
+            bvh,
             size,
             reps,
         })
@@ -148,7 +151,11 @@ impl<'a> Bed<'a> {
     /// Times `accel` on `set` (median of `reps` runs after a warm-up), counts its work per ray
     /// natively, and checks its answers against the oracle sample and the reference.
     pub fn measure(&self, set: &RaySet, accel: Accel) -> Result<Row> {
-        let counts = analysis::counts(&self.scene.triangles, self.tree, accel, &set.rays, set.closest)?;
+        let counts = if accel.needs_bvh() {
+            analysis::bvh_counts(&self.bvh, &set.rays, set.closest)
+        } else {
+            analysis::counts(&self.scene.triangles, self.tree, accel, &set.rays, set.closest)?
+        };
         let spread_text;
         let (wall, gpu_ms, parts, got) = match &self.gpu {
             Some((g, gt)) => {

@@ -83,8 +83,8 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
     let copies = if software { 1 } else { 5 };
     o.progress.set_length(specs.len() as u64 * 2);
     let speed_header: Vec<String> = [
-        "scene", "triangles", "photons", "rays traced", "bounces", "bounces/photon", "stored", "trace ms", "M bounces/s",
-        "split trace ms", "trace parts: emit only / first hit only / no stores ms", "index grid ms", "grid keys / sort / permute ms", "cells, slots", "index kd ms", "eye ms", "gather grid ms", "gather grid 2r ms", "gather kd ms", "image",
+        "scene", "triangles", "photons", "rays traced", "bounces", "bounces/photon", "stored", "trace ms", "M bounces/s", "BVH trace ms", "BVH M bounces/s",
+        "split trace ms", "trace parts: emit only / first hit only / no stores ms", "index grid ms", "grid keys / sort / permute ms", "cells, slots", "index kd ms", "eye ms", "BVH eye ms", "gather grid ms", "gather grid 2r ms", "gather kd ms", "image",
     ]
     .map(String::from)
     .to_vec();
@@ -97,7 +97,8 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
     let mut files = Vec::new();
     for spec in &specs {
         let (scene, tree) = all.get(spec, &o.build)?;
-        let t = Tracer::new(rt, scene, Some(tree))?;
+        let bvh = kdray::bvh::try_build(&scene.triangles)?;
+        let t = Tracer::new(rt, scene, Some(tree))?.with_bvh(&bvh)?;
         let speed_only = std::env::var("KDRAY_PHOTONS_SPEED_ONLY").is_ok_and(|v| v == "1");
         let area = scene.surface_area();
         // Speed: one pass of `photons` photons, both indices.
@@ -110,12 +111,17 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
         let mut grid = PhotonMap::new(&t, accel, Some(tree), area, base.clone())?;
         let stored = grid.trace_and_index(0)?;
         let trace_ms = time_recorded(rt, copies, &|c| grid.record_trace(c, 0))?;
+        // The same photons through the wide BVH (the same bounces: it finds the kd-tree's hits).
+        let mut wide_map = PhotonMap::new(&t, Accel::BVH, Some(tree), area, base.clone())?;
+        wide_map.trace_and_index(0)?;
+        let bvh_trace_ms = time_recorded(rt, copies, &|c| wide_map.record_trace(c, 0))?;
+        drop(wide_map);
         // Where the whole-path kernel's time goes: the same dispatch with no lights (launch and
         // emission only), stopping at the first hit (max_bounces 0), and storing nothing
         // (capacity 0: slots are still taken).
         let method = t.whole_path_method(accel, TracePhotons::PREFIX).context("no whole-path photon kernel")?;
         let part = |p: PhotonParams| -> Result<f64> {
-            let k = TracePhotons::new(method, PhotonParams { count: photons, ..p }, &t.lights, t.scene_binds(), &t.materials, &grid.records, &grid.counter)
+            let k = TracePhotons::new(method, PhotonParams { count: photons, ..p }, &t.lights, t.scene_binds(accel), &t.materials, &grid.records, &grid.counter)
                 .context("no whole-path photon kernel")?;
             time_recorded(rt, copies, &|c| {
                 rt.clear(c, grid.counter.raw())?;
@@ -134,7 +140,7 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
         let index_kd = time_recorded(rt, copies, &|c| kd.record_index(c, 0))?;
         let cam = scene.camera.to_pod(o.size, o.size);
         let n = (o.size * o.size) as usize;
-        let (eye_ms, gather_grid, gather_wide, gather_kd) = if t.batch_size(accel, n) >= n {
+        let (eye_ms, bvh_eye_ms, gather_grid, gather_wide, gather_kd) = if t.batch_size(accel, n) >= n {
             let fb = FrameBuffers::new(&t, accel, n)?;
             let po = PathOptions { seed: 1, bounces: 16, diffuse_bounces: 0, spp: 1, jitter: true, fused: true };
             let mut p = path::params(&t, &cam, &po, 0, n, 0);
@@ -145,12 +151,18 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
                 }
                 Ok(())
             })?;
+            let bvh_eye = time_recorded(rt, copies, &|c| {
+                for k in path::eye_passes(&t, Accel::BVH, &p, &fb, true)? {
+                    rt.dispatch(c, k.as_ref())?;
+                }
+                Ok(())
+            })?;
             let g = time_recorded(rt, copies, &|c| rt.dispatch(c, &grid.gather(0, n as u32, &fb)))?;
             let w = time_recorded(rt, copies, &|c| rt.dispatch(c, &wide.gather(0, n as u32, &fb)))?;
             let k = time_recorded(rt, copies, &|c| rt.dispatch(c, &kd.gather(0, n as u32, &fb)))?;
-            (format!("{eye:.3}"), format!("{g:.3}"), format!("{w:.3}"), format!("{k:.3}"))
+            (format!("{eye:.3}"), format!("{bvh_eye:.3}"), format!("{g:.3}"), format!("{w:.3}"), format!("{k:.3}"))
         } else {
-            ("–".into(), "–".into(), "–".into(), "–".into())
+            ("–".into(), "–".into(), "–".into(), "–".into(), "–".into())
         };
         row.extend([
             rays.to_string(),
@@ -159,6 +171,8 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
             stored.to_string(),
             format!("{trace_ms:.3}"),
             format!("{:.1}", bounces as f64 / trace_ms / 1e3),
+            format!("{bvh_trace_ms:.3}"),
+            format!("{:.1}", bounces as f64 / bvh_trace_ms / 1e3),
             format!("{split_ms:.3}"),
             format!("{:.3} / {:.3} / {:.3}", parts[0], parts[1], parts[2]),
             format!("{index_grid:.3}"),
@@ -166,6 +180,7 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
             format!("{cells}, {slots}"),
             format!("{index_kd:.3}"),
             eye_ms,
+            bvh_eye_ms,
             gather_grid,
             gather_wide,
             gather_kd,

@@ -148,7 +148,7 @@ fn dump_set(o: &Options, bed: &Bed, set: &RaySet) -> Result<()> {
     }
 }
 
-const HORN_ROWS: [(&str, Accel); 7] = [
+const HORN_ROWS: [(&str, Accel); 8] = [
     ("full stack (baseline)", Accel::kd(Algorithm::Stack)),
     ("kd-restart", Accel::kd(Algorithm::Restart)),
     ("+ packets", Accel::packet(Algorithm::Restart)),
@@ -156,6 +156,7 @@ const HORN_ROWS: [(&str, Accel); 7] = [
     ("+ short-stack (3)", Accel::packet(Algorithm::ShortStack(3))),
     ("push-down, single rays", Accel::kd(Algorithm::PushDown)),
     ("short-stack (3), single rays", Accel::kd(Algorithm::ShortStack(3))),
+    ("compressed 8-wide BVH", Accel::BVH),
 ];
 
 /// Horn et al. 2007, Table 1: Mrays/s of the cumulative variants for primary (PS) and shadow

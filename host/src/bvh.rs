@@ -1,0 +1,474 @@
+//! The compressed 8-wide BVH builder (Ylitie, Karras & Laine 2017), traversed by
+//! `kdray_shared::bvh` on CPU and GPU.
+//!
+//! 1. A binary BVH by binned SAH (`BINS` bins per axis, leaves of at most three triangles,
+//!    subtrees built in parallel). Object-median splits take over where the SAH finds no split
+//!    or where the depth left would not suffice, so the tree is never deeper than
+//!    `MAX_BVH_DEPTH`.
+//! 2. Collapse to eight wide: a node's children are its binary children, then repeatedly the
+//!    interior child of largest surface area is replaced by its two children until there are
+//!    eight or only leaves.
+//! 3. Slots by octant: the child lying first along octant o's diagonal (smallest projection of
+//!    its centroid on it) goes to slot o, greedily over all (child, slot) costs, so the
+//!    traversal's `slot ^ (7 − octant)` order is roughly front to back.
+//! 4. Quantisation: per node and axis a power-of-two step and an origin on its grid such that
+//!    every `origin + step · q` (q = 0..=255) is exact in `f32`; each child's box is rounded
+//!    outwards onto the grid (checked in `f32`, as the kernels compute it).
+//!
+//! Nodes are laid out breadth first (children after their parent, a node's child nodes
+//! contiguous in slot order); leaf triangles are copied in the same order with their scene
+//! index in `Triangle::_pad`.
+use crate::error::{bail, Result};
+use kdray_shared::bvh::{meta_is_node, BvhNode, BVH_WIDTH, MAX_BVH_DEPTH, MAX_LEAF_TRIS};
+use glam::UVec4;
+use kdray_shared::Triangle;
+use std::collections::VecDeque;
+
+/// SAH bins per axis.
+const BINS: usize = 16;
+/// Relative cost of visiting a node (a triangle test costs 1).
+const NODE_COST: f32 = 1.0;
+/// Triangles above which subtrees are built in parallel.
+const PARALLEL: usize = 4096;
+
+/// A built BVH: what `Tracer::with_bvh` uploads.
+#[derive(Clone, Debug)]
+pub struct BvhData {
+    /// The nodes; `nodes[0]` is the root.
+    pub nodes: Vec<BvhNode>,
+    /// The scene's triangles in leaf order, each with its scene index in `_pad`.
+    pub tris: Vec<Triangle>,
+    /// Levels of nodes (the root alone: 1).
+    pub depth: usize,
+    /// Leaf children (of at most three triangles each).
+    pub leaves: usize,
+    /// SAH cost of the binary tree (node visits cost `NODE_COST`, triangle tests 1).
+    pub sah_cost: f64,
+}
+
+#[derive(Copy, Clone, Debug)]
+struct Bounds {
+    lo: [f32; 3],
+    hi: [f32; 3],
+}
+
+impl Bounds {
+    const EMPTY: Bounds = Bounds { lo: [f32::INFINITY; 3], hi: [f32::NEG_INFINITY; 3] };
+    fn grow(&mut self, b: &Bounds) {
+        for a in 0..3 {
+            self.lo[a] = self.lo[a].min(b.lo[a]);
+            self.hi[a] = self.hi[a].max(b.hi[a]);
+        }
+    }
+    fn grow_point(&mut self, p: [f32; 3]) {
+        for a in 0..3 {
+            self.lo[a] = self.lo[a].min(p[a]);
+            self.hi[a] = self.hi[a].max(p[a]);
+        }
+    }
+    fn area(&self) -> f32 {
+        if self.lo[0] > self.hi[0] {
+            return 0.0;
+        }
+        let d = [self.hi[0] - self.lo[0], self.hi[1] - self.lo[1], self.hi[2] - self.lo[2]];
+        2.0 * (d[0] * d[1] + d[1] * d[2] + d[2] * d[0])
+    }
+    fn centroid(&self) -> [f32; 3] {
+        [0.5 * (self.lo[0] + self.hi[0]), 0.5 * (self.lo[1] + self.hi[1]), 0.5 * (self.lo[2] + self.hi[2])]
+    }
+}
+
+/// A binary BVH node: a leaf holds `prims[first..first + count]`.
+enum Node2 {
+    Leaf { b: Bounds, first: usize, count: usize },
+    Inner { b: Bounds, kids: Box<[Node2; 2]> },
+}
+
+impl Node2 {
+    fn bounds(&self) -> &Bounds {
+        match self {
+            Node2::Leaf { b, .. } | Node2::Inner { b, .. } => b,
+        }
+    }
+}
+
+struct Input<'a> {
+    boxes: &'a [Bounds],
+    centroids: &'a [[f32; 3]],
+}
+
+/// Builds the binary tree over `prims` (their offset in the whole index list is `offset`).
+fn build2(inp: &Input, prims: &mut [u32], offset: usize, depth: usize, cost: &mut f64) -> Node2 {
+    let n = prims.len();
+    let mut b = Bounds::EMPTY;
+    let mut cb = Bounds::EMPTY;
+    for &p in prims.iter() {
+        b.grow(&inp.boxes[p as usize]);
+        cb.grow_point(inp.centroids[p as usize]);
+    }
+    let leaf = |cost: &mut f64| {
+        *cost += (b.area() * n as f32) as f64;
+        Node2::Leaf { b, first: offset, count: n }
+    };
+    // Levels a balanced split of the rest would still need: past the depth that leaves,
+    // object medians take over so the tree stays within `MAX_BVH_DEPTH`.
+    let levels_left = usize::BITS as usize - (n.div_ceil(MAX_LEAF_TRIS)).leading_zeros() as usize + 1;
+    let must_balance = depth + levels_left + 1 >= MAX_BVH_DEPTH;
+    if n <= 1 || (must_balance && n <= MAX_LEAF_TRIS) {
+        return leaf(cost);
+    }
+    let split = if must_balance { None } else { sah_split(inp, prims, &b, &cb) };
+    let mid = match split {
+        Some((axis, bin, split_cost)) => {
+            if n <= MAX_LEAF_TRIS && split_cost >= n as f32 {
+                return leaf(cost);
+            }
+            let (k, e) = (cb.lo[axis], cb.hi[axis] - cb.lo[axis]);
+            let mut i = 0;
+            for j in 0..n {
+                if bin_of(inp.centroids[prims[j] as usize][axis], k, e) <= bin {
+                    prims.swap(i, j);
+                    i += 1;
+                }
+            }
+            if i == 0 || i == n {
+                median(inp, prims, &cb)
+            } else {
+                i
+            }
+        }
+        // Every centroid at one point, or the depth left demands balance.
+        None if n <= MAX_LEAF_TRIS => return leaf(cost),
+        None => median(inp, prims, &cb),
+    };
+    *cost += (b.area() * NODE_COST) as f64;
+    let (l, r) = prims.split_at_mut(mid);
+    let (mut cl, mut cr) = (0.0, 0.0);
+    let (a, c) = if n > PARALLEL {
+        rayon::join(|| build2(inp, l, offset, depth + 1, &mut cl), || build2(inp, r, offset + mid, depth + 1, &mut cr))
+    } else {
+        (build2(inp, l, offset, depth + 1, &mut cl), build2(inp, r, offset + mid, depth + 1, &mut cr))
+    };
+    *cost += cl + cr;
+    Node2::Inner { b, kids: Box::new([a, c]) }
+}
+
+fn bin_of(c: f32, lo: f32, extent: f32) -> usize {
+    (((c - lo) / extent * BINS as f32) as usize).min(BINS - 1)
+}
+
+/// The best binned SAH split: axis, last bin of the left side, and cost relative to the node's
+/// area (in triangle tests). `None` if every centroid is the same point.
+fn sah_split(inp: &Input, prims: &[u32], b: &Bounds, cb: &Bounds) -> Option<(usize, usize, f32)> {
+    let mut best: Option<(usize, usize, f32)> = None;
+    let parent = b.area().max(f32::MIN_POSITIVE);
+    for axis in 0..3 {
+        let e = cb.hi[axis] - cb.lo[axis];
+        if !(e > 0.0) {
+            continue;
+        }
+        let mut count = [0usize; BINS];
+        let mut boxes = [Bounds::EMPTY; BINS];
+        for &p in prims {
+            let k = bin_of(inp.centroids[p as usize][axis], cb.lo[axis], e);
+            count[k] += 1;
+            boxes[k].grow(&inp.boxes[p as usize]);
+        }
+        let mut right_area = [0.0f32; BINS];
+        let mut right_count = [0usize; BINS];
+        let (mut rb, mut rc) = (Bounds::EMPTY, 0);
+        for k in (1..BINS).rev() {
+            rb.grow(&boxes[k]);
+            rc += count[k];
+            right_area[k] = rb.area();
+            right_count[k] = rc;
+        }
+        let (mut lb, mut lc) = (Bounds::EMPTY, 0);
+        for k in 0..BINS - 1 {
+            lb.grow(&boxes[k]);
+            lc += count[k];
+            let rc = right_count[k + 1];
+            if lc == 0 || rc == 0 {
+                continue;
+            }
+            let c = NODE_COST + (lb.area() * lc as f32 + right_area[k + 1] * rc as f32) / parent;
+            if best.is_none_or(|(_, _, bc)| c < bc) {
+                best = Some((axis, k, c));
+            }
+        }
+    }
+    best
+}
+
+/// Splits `prims` at its median along the centroids' longest axis; returns the split index.
+fn median(inp: &Input, prims: &mut [u32], cb: &Bounds) -> usize {
+    let d = [cb.hi[0] - cb.lo[0], cb.hi[1] - cb.lo[1], cb.hi[2] - cb.lo[2]];
+    let axis = if d[0] >= d[1] && d[0] >= d[2] { 0 } else if d[1] >= d[2] { 1 } else { 2 };
+    let mid = prims.len() / 2;
+    prims.select_nth_unstable_by(mid, |&a, &b| inp.centroids[a as usize][axis].total_cmp(&inp.centroids[b as usize][axis]));
+    mid
+}
+
+/// The (up to eight) children of a wide node made from `n`.
+fn wide_children(n: &Node2) -> Vec<&Node2> {
+    let mut kids: Vec<&Node2> = match n {
+        Node2::Leaf { .. } => vec![n],
+        Node2::Inner { kids, .. } => vec![&kids[0], &kids[1]],
+    };
+    while kids.len() < BVH_WIDTH {
+        let pick = kids
+            .iter()
+            .enumerate()
+            .filter(|(_, k)| matches!(k, Node2::Inner { .. }))
+            .max_by(|a, b| a.1.bounds().area().total_cmp(&b.1.bounds().area()))
+            .map(|(i, _)| i);
+        let Some(i) = pick else { break };
+        let Node2::Inner { kids: grand, .. } = kids.swap_remove(i) else { unreachable!() };
+        kids.push(&grand[0]);
+        kids.push(&grand[1]);
+    }
+    kids
+}
+
+/// Slot of each child: the child first along octant s's diagonal goes to slot s.
+fn assign_slots<'a>(parent: &Bounds, kids: &[&'a Node2]) -> [Option<&'a Node2>; BVH_WIDTH] {
+    let pc = parent.centroid();
+    let mut costs = Vec::with_capacity(kids.len() * BVH_WIDTH);
+    for (i, k) in kids.iter().enumerate() {
+        let c = k.bounds().centroid();
+        for s in 0..BVH_WIDTH {
+            let dir = [if s & 4 != 0 { -1.0 } else { 1.0 }, if s & 2 != 0 { -1.0 } else { 1.0 }, if s & 1 != 0 { -1.0 } else { 1.0 }];
+            let cost: f32 = (0..3).map(|a| (c[a] - pc[a]) * dir[a]).sum();
+            costs.push((cost, i, s));
+        }
+    }
+    costs.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
+    let mut slots = [None; BVH_WIDTH];
+    let mut placed = vec![false; kids.len()];
+    for (_, i, s) in costs {
+        if !placed[i] && slots[s].is_none() {
+            slots[s] = Some(kids[i]);
+            placed[i] = true;
+        }
+    }
+    slots
+}
+
+/// Step exponent and origin of one axis' grid, and the children's quantised coordinates on it.
+fn quantise_axis(lo: f32, hi: f32, kids: &[(f32, f32)]) -> Result<(i32, f32, Vec<(u32, u32)>)> {
+    let extent = (hi as f64 - lo as f64).max(0.0);
+    let max_abs = lo.abs().max(hi.abs()) as f64;
+    // Steps from 2^-100 (no subnormal coordinate anywhere) to 2^119 (255 steps stay finite).
+    let mut e = if extent > 0.0 { (extent / 255.0).log2().ceil() as i32 } else { -100 };
+    if max_abs > 0.0 {
+        // The origin must lie within 2^23 steps of zero, so that origin + q·step is exact.
+        e = e.max(max_abs.log2().floor() as i32 + 1 - 23);
+    }
+    e = e.max(-100);
+    while e <= 119 {
+        let s = (e as f64).exp2();
+        let k = (lo as f64 / s).floor();
+        if k.abs() + 256.0 < (1u64 << 24) as f64 {
+            let origin = (k * s) as f32;
+            let s32 = s as f32;
+            let at = |q: u32| origin + s32 * q as f32;
+            let mut qs = Vec::with_capacity(kids.len());
+            let mut fits = true;
+            for &(cl, ch) in kids {
+                let mut ql = ((cl as f64 - k * s) / s).floor().max(0.0) as u32;
+                let mut qh = ((ch as f64 - k * s) / s).ceil().max(0.0) as u32;
+                // As the kernels compute the coordinates: exact, and around the child's box.
+                while ql > 0 && at(ql) > cl {
+                    ql -= 1;
+                }
+                while qh <= 255 && at(qh) < ch {
+                    qh += 1;
+                }
+                if qh > 255 || at(ql) > cl {
+                    fits = false;
+                    break;
+                }
+                qs.push((ql, qh));
+            }
+            if fits {
+                return Ok((e, origin, qs));
+            }
+        }
+        e += 1;
+    }
+    bail!(TooLarge: "a BVH node spans [{lo}, {hi}], too large to quantise")
+}
+
+/// Builds the compressed 8-wide BVH over `tris`.
+pub fn build(tris: &[Triangle]) -> BvhData {
+    try_build(tris).expect("BVH build")
+}
+
+/// Builds the compressed 8-wide BVH over `tris`; fails on coordinates too large to quantise
+/// or more triangles or nodes than 32-bit indices can hold.
+pub fn try_build(tris: &[Triangle]) -> Result<BvhData> {
+    if tris.len() >= (1usize << 31) {
+        bail!(TooLarge: "{} triangles: the BVH indexes at most 2^31", tris.len());
+    }
+    let boxes: Vec<Bounds> = tris
+        .iter()
+        .map(|t| {
+            let mut b = Bounds::EMPTY;
+            for v in [t.v0, t.v1, t.v2] {
+                b.grow_point(v);
+            }
+            b
+        })
+        .collect();
+    let centroids: Vec<[f32; 3]> = boxes.iter().map(Bounds::centroid).collect();
+    if tris.is_empty() {
+        return Ok(BvhData { nodes: vec![BvhNode::default()], tris: Vec::new(), depth: 1, leaves: 0, sah_cost: 0.0 });
+    }
+    let mut prims: Vec<u32> = (0..tris.len() as u32).collect();
+    let mut cost = 0.0;
+    let root = build2(&Input { boxes: &boxes, centroids: &centroids }, &mut prims, 0, 0, &mut cost);
+    let root_area = root.bounds().area().max(f32::MIN_POSITIVE) as f64;
+
+    let mut nodes = vec![BvhNode::default()];
+    let mut out_tris: Vec<Triangle> = Vec::with_capacity(tris.len());
+    let mut queue: VecDeque<(usize, &Node2, usize)> = VecDeque::from([(0, &root, 1)]);
+    let (mut depth, mut leaves) = (1, 0);
+    while let Some((index, n, level)) = queue.pop_front() {
+        depth = depth.max(level);
+        let pb = *n.bounds();
+        let slots = assign_slots(&pb, &wide_children(n));
+        let mut node = BvhNode::default();
+        let child_base = nodes.len();
+        let tri_base = out_tris.len();
+        let mut imask = 0u32;
+        let mut meta = [0u32; BVH_WIDTH];
+        for (s, k) in slots.iter().enumerate() {
+            match k {
+                None => {}
+                Some(Node2::Inner { .. }) => {
+                    imask |= 1 << s;
+                    meta[s] = 0b001_00000 | (24 + s as u32);
+                    nodes.push(BvhNode::default());
+                    queue.push_back((nodes.len() - 1, k.unwrap(), level + 1));
+                }
+                Some(Node2::Leaf { first, count, .. }) => {
+                    let offset = (out_tris.len() - tri_base) as u32;
+                    meta[s] = (((1u32 << count) - 1) << 5) | offset;
+                    for &p in &prims[*first..first + count] {
+                        out_tris.push(Triangle { _pad: p, ..tris[p as usize] });
+                    }
+                    leaves += 1;
+                }
+            }
+        }
+        if nodes.len() > u32::MAX as usize / 2 {
+            bail!(TooLarge: "the BVH needs more than 2^31 nodes");
+        }
+        let mut q = [[0u32; BVH_WIDTH]; 6];
+        let mut exps = 0u32;
+        for a in 0..3 {
+            let kids: Vec<(f32, f32)> = slots.iter().flatten().map(|k| (k.bounds().lo[a], k.bounds().hi[a])).collect();
+            let (e, origin, qs) = quantise_axis(pb.lo[a], pb.hi[a], &kids)?;
+            node.origin_exp[a] = origin.to_bits();
+            exps |= ((e + 127) as u32) << (8 * a);
+            for (s, (ql, qh)) in slots.iter().enumerate().filter(|(_, k)| k.is_some()).map(|(s, _)| s).zip(qs) {
+                q[a][s] = ql;
+                q[3 + a][s] = qh;
+            }
+        }
+        node.origin_exp.w = exps | (imask << 24);
+        let pack = |v: &[u32; BVH_WIDTH]| -> [u32; 2] {
+            [v[0] | v[1] << 8 | v[2] << 16 | v[3] << 24, v[4] | v[5] << 8 | v[6] << 16 | v[7] << 24]
+        };
+        let [m0, m1] = pack(&meta);
+        node.bases_meta = UVec4::new(child_base as u32, tri_base as u32, m0, m1);
+        let words: Vec<[u32; 2]> = q.iter().map(pack).collect();
+        node.lo_x_y = UVec4::new(words[0][0], words[0][1], words[1][0], words[1][1]);
+        node.lo_z_hi_x = UVec4::new(words[2][0], words[2][1], words[3][0], words[3][1]);
+        node.hi_y_z = UVec4::new(words[4][0], words[4][1], words[5][0], words[5][1]);
+        nodes[index] = node;
+    }
+    if depth > MAX_BVH_DEPTH {
+        bail!(TooLarge: "the BVH is {depth} levels deep (at most {MAX_BVH_DEPTH})");
+    }
+    Ok(BvhData { nodes, tris: out_tris, depth, leaves, sah_cost: cost / root_area })
+}
+
+impl BvhData {
+    /// Checks what the kernels rely on for a scene of `scene_tris` triangles: every child node
+    /// after its parent and in range, every leaf's triangles in range and each once, every
+    /// scene index in range, each child box inside its node's grid, depth ≤ `MAX_BVH_DEPTH`.
+    pub fn validate(&self, scene_tris: usize) -> Result<()> {
+        let n = self.nodes.len();
+        if n == 0 {
+            bail!(InvalidInput: "a BVH without a root node");
+        }
+        if self.tris.len() != scene_tris {
+            bail!(InvalidInput: "the BVH holds {} triangles, the scene {scene_tris}", self.tris.len());
+        }
+        let mut seen = vec![false; scene_tris];
+        for t in &self.tris {
+            let p = t._pad as usize;
+            if p >= scene_tris || std::mem::replace(&mut seen[p], true) {
+                bail!(InvalidInput: "the BVH does not belong to this scene: it names triangle {p} of {scene_tris} (or twice)");
+            }
+        }
+        let mut level = vec![0usize; n];
+        level[0] = 1;
+        for (i, node) in self.nodes.iter().enumerate() {
+            let inner = node.imask().count_ones() as usize;
+            let base = node.child_base() as usize;
+            if inner > 0 && (base <= i || base + inner > n) {
+                bail!(InvalidInput: "BVH node {i}: child nodes {base}..{} out of order or range", base + inner);
+            }
+            let mut covered = 0u32;
+            for s in 0..BVH_WIDTH as u32 {
+                let m = node.meta(s);
+                let is_node = node.imask() >> s & 1 != 0;
+                if m == 0 {
+                    if is_node {
+                        bail!(InvalidInput: "BVH node {i}: slot {s} is empty but marked a node");
+                    }
+                    continue;
+                }
+                if meta_is_node(m) != is_node || (is_node && m != 0b001_00000 | (24 + s)) {
+                    bail!(InvalidInput: "BVH node {i}: slot {s}'s meta byte {m:#x} disagrees with the node mask");
+                }
+                if !is_node {
+                    let count = match m >> 5 {
+                        0b001 => 1,
+                        0b011 => 2,
+                        0b111 => 3,
+                        _ => bail!(InvalidInput: "BVH node {i}: slot {s}'s triangle count {:#b} is not unary", m >> 5),
+                    };
+                    let off = m & 0x1f;
+                    let bits = ((1u32 << count) - 1) << off;
+                    if off + count > 24 || node.tri_base() as usize + (off + count) as usize > self.tris.len() || covered & bits != 0 {
+                        bail!(InvalidInput: "BVH node {i}: slot {s}'s triangles out of range or shared");
+                    }
+                    covered |= bits;
+                }
+            }
+            let mut k = 0;
+            for s in 0..BVH_WIDTH as u32 {
+                if node.imask() >> s & 1 != 0 {
+                    let c = base + k;
+                    k += 1;
+                    if level[c] != 0 {
+                        bail!(InvalidInput: "BVH node {c} has two parents");
+                    }
+                    level[c] = level[i] + 1;
+                    if level[c] > MAX_BVH_DEPTH {
+                        bail!(InvalidInput: "the BVH is deeper than {MAX_BVH_DEPTH} levels");
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Bytes of the nodes and leaf triangles together.
+    pub fn bytes(&self) -> usize {
+        std::mem::size_of_val(&self.nodes[..]) + std::mem::size_of_val(&self.tris[..])
+    }
+}

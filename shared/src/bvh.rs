@@ -1,0 +1,346 @@
+//! The compressed 8-wide BVH (Ylitie, Karras & Laine 2017, "Efficient incoherent ray traversal
+//! on GPUs through compressed wide BVHs") as both sides see it, and its traversal, written once.
+//!
+//! A node is 80 bytes: the origin and per-axis power-of-two step of a grid on which its (up to)
+//! eight children's boxes are stored as 8-bit coordinates, a mask of which child slots are
+//! nodes, the index of its first child node and of its first leaf triangle, and one meta byte
+//! per slot. Child nodes are stored contiguously in slot order; so are the triangles of the
+//! children that are leaves (at most three per leaf, 24 per node).
+//!
+//! Traversal keeps *groups* rather than single nodes: a group is a base index and a bit mask of
+//! the hit children still to visit (nodes in bits 24..32, triangles in bits 0..24). The builder
+//! places the child that lies first along each ray octant's diagonal in the slot of that
+//! octant, and a ray visits node slots in the order `slot ^ (7 - octant)` from the top bit down,
+//! so children are taken roughly front to back without sorting. One stack entry (the rest of a
+//! group) per level: the stack never holds more entries than the tree is deep
+//! (`MAX_BVH_DEPTH`, which the builder guarantees and the host checks).
+//!
+//! Rules that keep the traversal exact (the same hits as the brute-force oracle):
+//! * the quantisation grid is chosen so that every stored box coordinate `origin + step · q`
+//!   is exactly representable in `f32` (the origin is a multiple of the step and lies within
+//!   2^23 steps of zero), and the stored box encloses the child's true box; the kernel
+//!   reconstructs it exactly;
+//! * the box test is `aabb`'s slab test (far distance widened by 2γ(3), a direction component
+//!   too small to invert treats the slab as parallel), so rounding never culls a box that a
+//!   hit triangle lies in;
+//! * a child is culled only when its box starts beyond the best hit so far (or ends before the
+//!   ray's `t_min`) by more than the rounding of both distances (`widened`), so a triangle at
+//!   the same `t` with a lower index (the tie rule) is still tested;
+//! * every loop is bounded by the node count; invalid rays (`Ray::is_valid`) are misses.
+use crate::aabb::{inv_dir, slab};
+use crate::pod::Triangle;
+use crate::query::Query;
+use crate::ray::Ray;
+use crate::stats::Stats;
+use crate::triangle::ShearedRay;
+use crate::kernel::at;
+use crate::math::fma;
+use bytemuck::{Pod, Zeroable};
+use glam::UVec4;
+
+/// Children per node.
+pub const BVH_WIDTH: usize = 8;
+/// Triangles per leaf child at most (the meta byte's unary count has three bits).
+pub const MAX_LEAF_TRIS: usize = 3;
+/// Deepest tree the builder produces, and the traversal stack's capacity.
+pub const MAX_BVH_DEPTH: usize = 32;
+/// Meta byte of an empty slot.
+pub const META_EMPTY: u32 = 0;
+
+/// One node: 80 bytes, five 16-byte words (vectors, so a kernel loads each in one access).
+///
+/// * `origin_exp`: the grid origin's x, y, z (`f32` bits) and, in the fourth word, the biased
+///   `f32` exponents of the steps (x in bits 0..8, y in 8..16, z in 16..24: the step along an
+///   axis is `f32::from_bits(e << 23)`) and the internal-child mask (bits 24..32: bit s set when
+///   slot s is a node).
+/// * `bases_meta`: the first child node's index, the first leaf triangle's index, and the meta
+///   bytes of slots 0..4 and 4..8 (byte s of the pair). Meta: 0 for an empty slot; a node in
+///   slot s: `0b001_00000 | (24 + s)`; a leaf: its triangle count in unary in bits 5..8
+///   (`0b001`, `0b011`, `0b111`) and its first triangle's offset from the node's first leaf
+///   triangle in bits 0..5 (0..24).
+/// * `lo_x_y`, `lo_z_hi_x`, `hi_y_z`: the children's quantised box corners, one byte per slot:
+///   each pair of words holds one axis' eight bytes (slots 0..4, then 4..8): lo x, lo y, lo z,
+///   hi x, hi y, hi z.
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct BvhNode {
+    /// Grid origin (x, y, z as `f32` bits); step exponents and the internal-child mask.
+    pub origin_exp: UVec4,
+    /// First child node, first leaf triangle, meta bytes of slots 0..4 and 4..8.
+    pub bases_meta: UVec4,
+    /// Quantised lower x, then lower y, of slots 0..8.
+    pub lo_x_y: UVec4,
+    /// Quantised lower z, then upper x, of slots 0..8.
+    pub lo_z_hi_x: UVec4,
+    /// Quantised upper y, then upper z, of slots 0..8.
+    pub hi_y_z: UVec4,
+}
+
+/// Byte `s` (0..8) of the eight bytes held by the word pair `(a, b)`.
+#[inline(always)]
+fn byte_of(a: u32, b: u32, s: u32) -> u32 {
+    let w = if s < 4 { a } else { b };
+    (w >> ((s & 3) * 8)) & 0xff
+}
+
+impl BvhNode {
+    /// The grid origin.
+    #[inline(always)]
+    pub fn origin(&self) -> [f32; 3] {
+        [f32::from_bits(self.origin_exp.x), f32::from_bits(self.origin_exp.y), f32::from_bits(self.origin_exp.z)]
+    }
+    /// The grid step along each axis (a power of two).
+    #[inline(always)]
+    pub fn steps(&self) -> [f32; 3] {
+        let e = self.origin_exp.w;
+        [f32::from_bits((e & 0xff) << 23), f32::from_bits(((e >> 8) & 0xff) << 23), f32::from_bits(((e >> 16) & 0xff) << 23)]
+    }
+    /// Bit s set when slot s is a node.
+    #[inline(always)]
+    pub fn imask(&self) -> u32 {
+        self.origin_exp.w >> 24
+    }
+    /// Index of the first child node.
+    #[inline(always)]
+    pub fn child_base(&self) -> u32 {
+        self.bases_meta.x
+    }
+    /// Index of the first leaf triangle.
+    #[inline(always)]
+    pub fn tri_base(&self) -> u32 {
+        self.bases_meta.y
+    }
+    /// Meta byte of slot `s`.
+    #[inline(always)]
+    pub fn meta(&self, s: u32) -> u32 {
+        byte_of(self.bases_meta.z, self.bases_meta.w, s)
+    }
+    /// Slot `s`'s quantised box: lower and upper grid coordinates per axis.
+    #[inline(always)]
+    pub fn quantised(&self, s: u32) -> ([u32; 3], [u32; 3]) {
+        (
+            [byte_of(self.lo_x_y.x, self.lo_x_y.y, s), byte_of(self.lo_x_y.z, self.lo_x_y.w, s), byte_of(self.lo_z_hi_x.x, self.lo_z_hi_x.y, s)],
+            [byte_of(self.lo_z_hi_x.z, self.lo_z_hi_x.w, s), byte_of(self.hi_y_z.x, self.hi_y_z.y, s), byte_of(self.hi_y_z.z, self.hi_y_z.w, s)],
+        )
+    }
+    /// Slot `s`'s box as stored (exact in `f32`: see the module's rules).
+    #[inline(always)]
+    pub fn child_box(&self, s: u32) -> ([f32; 3], [f32; 3]) {
+        let o = self.origin();
+        let st = self.steps();
+        let (lo, hi) = self.quantised(s);
+        (
+            [o[0] + st[0] * lo[0] as f32, o[1] + st[1] * lo[1] as f32, o[2] + st[2] * lo[2] as f32],
+            [o[0] + st[0] * hi[0] as f32, o[1] + st[1] * hi[1] as f32, o[2] + st[2] * hi[2] as f32],
+        )
+    }
+}
+
+/// Whether meta byte `m` is a node's (its low five bits are 24..32).
+#[inline(always)]
+pub fn meta_is_node(m: u32) -> bool {
+    m & 0b11000 == 0b11000
+}
+
+/// The tree: `nodes[0]` is the root; `tris` are the scene's triangles in leaf order, each with
+/// its index in the scene in `Triangle::_pad` (the `Hit::prim` reported).
+#[derive(Copy, Clone)]
+pub struct Bvh<'a> {
+    /// The nodes; `nodes[0]` is the root.
+    pub nodes: &'a [BvhNode],
+    /// The triangles in leaf order; `_pad` holds each one's index in the scene.
+    pub tris: &'a [Triangle],
+}
+
+/// Ray `ray`'s constants for the child box tests.
+#[derive(Copy, Clone)]
+struct BoxRay {
+    origin: [f32; 3],
+    inv: [f32; 3],
+    /// Per axis: 1 where the reciprocal direction is negative (the near plane is the upper one).
+    neg: [u32; 3],
+    /// 7 − the ray's octant (bit 2: x < 0, bit 1: y < 0, bit 0: z < 0).
+    oct_inv: u32,
+}
+
+/// The hit bits of a child with meta byte `m` (0 for an empty slot, so an empty slot's box
+/// needs no test): a node's bit `24 + (slot ^ oct_inv)`, a leaf's triangle bits.
+#[inline(always)]
+fn child_bits(m: u32, oct_inv: u32) -> u32 {
+    let bit = if meta_is_node(m) { (m ^ oct_inv) & 0x1f } else { m & 0x1f };
+    ((m >> 5) & 7) << bit
+}
+
+/// The hit mask of `node`'s children for `r` within [`t_min`, `t_max`]: node slots in bits
+/// 24..32 (slot s at bit `24 + (s ^ oct_inv)`), leaf triangles in bits 0..24 (offsets from the
+/// node's first leaf triangle). The fast form where the node's grid in ray units is finite
+/// (`fast_children`), else the exact slab test of every stored box (`exact_children`: a
+/// direction parallel to an axis, or a step times a reciprocal that overflows).
+#[inline(always)]
+fn intersect_children(node: &BvhNode, r: &BoxRay, t_min: f32, t_max: f32) -> u32 {
+    let o = node.origin();
+    let st = node.steps();
+    let adj_inv = [st[0] * r.inv[0], st[1] * r.inv[1], st[2] * r.inv[2]];
+    let rel = [o[0] - r.origin[0], o[1] - r.origin[1], o[2] - r.origin[2]];
+    let adj_o = [rel[0] * r.inv[0], rel[1] * r.inv[1], rel[2] * r.inv[2]];
+    let finite = adj_inv[0].is_finite() && adj_inv[1].is_finite() && adj_inv[2].is_finite() && adj_o[0].is_finite() && adj_o[1].is_finite() && adj_o[2].is_finite();
+    if finite {
+        fast_children(node, r, adj_inv, adj_o, rel, st, t_min, t_max)
+    } else {
+        exact_children(node, r, t_min, t_max)
+    }
+}
+
+/// Every stored box by `aabb::slab` (coordinates reconstructed exactly, far planes widened).
+#[inline(always)]
+fn exact_children(node: &BvhNode, r: &BoxRay, t_min: f32, t_max: f32) -> u32 {
+    let o = node.origin();
+    let st = node.steps();
+    let mut mask = 0u32;
+    let mut s = 0u32;
+    while s < BVH_WIDTH as u32 {
+        let m = node.meta(s);
+        if m != META_EMPTY {
+            let (ql, qh) = node.quantised(s);
+            let mut t0 = t_min;
+            let mut t1 = t_max;
+            let mut a = 0;
+            while a < 3 {
+                let lo = o[a] + st[a] * ql[a] as f32;
+                let hi = o[a] + st[a] * qh[a] as f32;
+                let (near, far) = slab(r.origin[a], r.inv[a], lo, hi, r.neg[a] != 0);
+                if near > t0 {
+                    t0 = near;
+                }
+                if far < t1 {
+                    t1 = far;
+                }
+                a += 1;
+            }
+            if t0 <= t1 {
+                mask |= child_bits(m, r.oct_inv);
+            }
+        }
+        s += 1;
+    }
+    mask
+}
+
+/// The eight boxes with one multiply-add per plane (Ylitie et al.): the distance to grid plane
+/// q is `q · step/d + (origin − o)/d`. Its rounding error is at most γ(4) · (255 · step +
+/// |origin − o|) / |d| per axis; the test accepts a box whose interval is empty by up to twice
+/// that (`slack`), so no box the exact test accepts is culled. Written out per slot (constant
+/// byte positions; an empty slot contributes no bits, so it is not skipped).
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn fast_children(node: &BvhNode, r: &BoxRay, adj_inv: [f32; 3], adj_o: [f32; 3], rel: [f32; 3], st: [f32; 3], t_min: f32, t_max: f32) -> u32 {
+    let err = |a: usize| (255.0 * st[a] + rel[a].abs()) * r.inv[a].abs();
+    let slack = 16.0 * f32::EPSILON * err(0).max(err(1)).max(err(2));
+    // Per axis, the words of the near and far planes' bytes (swapped where the ray goes down).
+    let pick = |lo: (u32, u32), hi: (u32, u32), neg: u32| if neg != 0 { (hi, lo) } else { (lo, hi) };
+    let (nx, fx) = pick((node.lo_x_y.x, node.lo_x_y.y), (node.lo_z_hi_x.z, node.lo_z_hi_x.w), r.neg[0]);
+    let (ny, fy) = pick((node.lo_x_y.z, node.lo_x_y.w), (node.hi_y_z.x, node.hi_y_z.y), r.neg[1]);
+    let (nz, fz) = pick((node.lo_z_hi_x.x, node.lo_z_hi_x.y), (node.hi_y_z.z, node.hi_y_z.w), r.neg[2]);
+    let (m0, m1) = (node.bases_meta.z, node.bases_meta.w);
+    let child = |s: u32| -> u32 {
+        let b = |w: (u32, u32)| byte_of(w.0, w.1, s) as f32;
+        let near = fma(b(nx), adj_inv[0], adj_o[0]).max(fma(b(ny), adj_inv[1], adj_o[1])).max(fma(b(nz), adj_inv[2], adj_o[2])).max(t_min);
+        let far = fma(b(fx), adj_inv[0], adj_o[0]).min(fma(b(fy), adj_inv[1], adj_o[1])).min(fma(b(fz), adj_inv[2], adj_o[2])).min(t_max);
+        if near <= far + slack {
+            child_bits(byte_of(m0, m1, s), r.oct_inv)
+        } else {
+            0
+        }
+    };
+    child(0) | child(1) | child(2) | child(3) | child(4) | child(5) | child(6) | child(7)
+}
+
+/// Relative widening of the interval the child boxes are tested against: far above the
+/// rounding of the box distances (γ(3)) and of the triangle test's `t` together.
+const BAND: f32 = 32.0 * f32::EPSILON;
+
+/// The interval [`t0`, `t1`] widened so that a box holding a triangle whose computed hit lies in
+/// it is never culled: by `BAND` relative, plus `BAND` of the node's extent along the ray (a
+/// triangle's `t` is rounded relative to its vertices' distance from the origin, not to `t`).
+#[inline(always)]
+fn widened(t0: f32, t1: f32, node: &BvhNode, inv_dmax: f32) -> (f32, f32) {
+    let st = node.steps();
+    let slack = BAND * (255.0 * (st[0] + st[1] + st[2]) * inv_dmax);
+    (t0 - t0.abs() * BAND - slack, t1 + t1.abs() * BAND + slack)
+}
+
+/// Walks `bvh` along `ray`, testing every triangle of every leaf whose box the ray's interval
+/// still overlaps with `q` (closest or any hit), roughly front to back.
+#[inline(always)]
+pub fn traverse<Q: Query, S: Stats>(bvh: &Bvh, ray: &Ray, q: &mut Q, stats: &mut S) {
+    let r = match ShearedRay::new(ray) {
+        Some(r) => r,
+        None => return,
+    };
+    let n_nodes = bvh.nodes.len() as u32;
+    let n_tris = bvh.tris.len() as u32;
+    if n_nodes == 0 {
+        return;
+    }
+    let d = ray.dir;
+    let inv = inv_dir(d);
+    // Signs of the reciprocals (−0 gives −∞: negative, as `slab` needs).
+    let neg = [(inv[0] < 0.0) as u32, (inv[1] < 0.0) as u32, (inv[2] < 0.0) as u32];
+    let inv_dmax = 1.0 / d[0].abs().max(d[1].abs()).max(d[2].abs());
+    let br = BoxRay { origin: ray.origin, inv, neg, oct_inv: 7 - (neg[0] << 2 | neg[1] << 1 | neg[2]) };
+    let mut stack = [[0u32; 2]; MAX_BVH_DEPTH];
+    let mut sp = 0usize;
+    // The root as the only node of a group with no internal mask: bit 31, relative index 0.
+    let mut nodes = [0u32, 1 << 31];
+    // Hang guard: each node is entered at most once and each step enters one or pops one.
+    let max_steps = 2 * n_nodes + 2;
+    let mut steps = 0u32;
+    while steps < max_steps {
+        steps += 1;
+        let mut tris = [0u32, 0u32];
+        if nodes[1] > 0x00ff_ffff {
+            let bit = 31 - nodes[1].leading_zeros();
+            let imask = nodes[1] & 0xff;
+            nodes[1] &= !(1u32 << bit);
+            let slot = (bit - 24) ^ br.oct_inv;
+            let index = nodes[0] + (imask & ((1u32 << slot) - 1)).count_ones();
+            if nodes[1] > 0x00ff_ffff && sp < MAX_BVH_DEPTH {
+                stack[sp] = nodes;
+                sp += 1;
+            }
+            if index >= n_nodes {
+                return;
+            }
+            // SAFETY: index < n_nodes, checked above.
+            let node = *unsafe { at(bvh.nodes, index as usize) };
+            stats.node();
+            let (t0, t1) = widened(ray.t_min, q.bound(), &node, inv_dmax);
+            let hits = intersect_children(&node, &br, t0, t1);
+            nodes = [node.child_base(), (hits & 0xff00_0000) | node.imask()];
+            tris = [node.tri_base(), hits & 0x00ff_ffff];
+            if tris[1] != 0 {
+                stats.leaf();
+            }
+        }
+        while tris[1] != 0 {
+            let k = tris[0] + tris[1].trailing_zeros();
+            tris[1] &= tris[1] - 1;
+            if k >= n_tris {
+                return;
+            }
+            // SAFETY: k < n_tris, checked above.
+            let tri = *unsafe { at(bvh.tris, k as usize) };
+            q.test(tri._pad, &tri, &r, ray.t_min, stats);
+            if !q.open() {
+                return;
+            }
+        }
+        if nodes[1] <= 0x00ff_ffff {
+            if sp == 0 {
+                return;
+            }
+            sp -= 1;
+            nodes = stack[sp];
+        }
+    }
+}

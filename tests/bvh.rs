@@ -1,0 +1,226 @@
+//! The compressed wide BVH's builder: the structure the kernels trust (every triangle once,
+//! child nodes after their parents, boxes that enclose what they hold, exactly as the kernels
+//! reconstruct them, depth within the stack), on the built-in scenes and on inputs made to
+//! break it (no triangles, one, thousands at one point, coordinates near the limits of `f32`,
+//! a chain that a plain SAH builder would make deeper than the stack), and the traversal on
+//! those against the oracle, natively and on the GPU. The oracle tests on the kd-tree's hard
+//! cases (`kd_traversal.rs`) run the BVH too.
+mod common;
+
+use glam::Vec3;
+use kdray::bvh::{self, BvhData};
+use kdray::runtime::cpu::NATIVE;
+use kdray::{scene, Accel, Runtime, Scene, Tracer};
+use kdray_shared::bvh::{Bvh, BvhNode, BVH_WIDTH, MAX_BVH_DEPTH};
+use kdray_shared::query::{Closest, Query};
+use kdray_shared::stats::NoStats;
+use kdray_shared::{Hit, Ray};
+
+/// Every slot's stored box (in `f32`, as the kernels compute it) encloses every triangle
+/// beneath it; returns the triangles beneath node `i`.
+fn enclosed(b: &BvhData, i: usize) -> Vec<usize> {
+    let n: &BvhNode = &b.nodes[i];
+    let mut all = Vec::new();
+    let mut k = 0;
+    for s in 0..BVH_WIDTH as u32 {
+        let m = n.meta(s);
+        if m == 0 {
+            continue;
+        }
+        let below: Vec<usize> = if n.imask() >> s & 1 != 0 {
+            let c = n.child_base() as usize + k;
+            k += 1;
+            enclosed(b, c)
+        } else {
+            let count = (m >> 5).count_ones() as usize;
+            (0..count).map(|j| n.tri_base() as usize + (m & 0x1f) as usize + j).collect()
+        };
+        let (lo, hi) = n.child_box(s);
+        for &t in &below {
+            let tri = &b.tris[t];
+            for v in [tri.v0, tri.v1, tri.v2] {
+                for a in 0..3 {
+                    assert!(lo[a] <= v[a] && v[a] <= hi[a], "node {i} slot {s}: box {lo:?}..{hi:?} misses vertex {v:?}");
+                }
+            }
+        }
+        all.extend(below);
+    }
+    all
+}
+
+fn check_structure(name: &str, s: &Scene) -> BvhData {
+    let b = bvh::try_build(&s.triangles).unwrap();
+    b.validate(s.triangles.len()).unwrap();
+    let mut under = enclosed(&b, 0);
+    under.sort();
+    assert_eq!(under, (0..s.triangles.len()).collect::<Vec<_>>(), "{name}: every leaf triangle once");
+    for (k, t) in b.tris.iter().enumerate() {
+        let o = &s.triangles[t._pad as usize];
+        assert_eq!((t.v0, t.v1, t.v2, t.material, t.face), (o.v0, o.v1, o.v2, o.material, o.face), "{name}: leaf triangle {k}");
+    }
+    assert!(b.depth <= MAX_BVH_DEPTH);
+    println!("{name}: {} triangles, {} nodes, {} leaves, depth {}, SAH {:.1}, {} KiB", s.triangles.len(), b.nodes.len(), b.leaves, b.depth, b.sah_cost, b.bytes() / 1024);
+    b
+}
+
+/// Random rays through the scene's box and from inside it.
+fn rays_for(s: &Scene, n: usize, seed: u32) -> Vec<Ray> {
+    let (lo, hi) = s.bounds();
+    let ext = (hi - lo).max(Vec3::splat(1e-3));
+    let mut rng = kdray_shared::rng::Rng::new(seed, 3);
+    common::random_dirs(n, seed)
+        .into_iter()
+        .map(|d| {
+            let p = lo - ext * 0.2 + ext * 1.4 * Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+            Ray::new(p.to_array(), d, 0.0, f32::INFINITY)
+        })
+        .collect()
+}
+
+/// The BVH against the oracle: natively bit for bit, on the GPU up to ties (the same point on
+/// two triangles).
+fn check_hits(name: &str, s: &Scene, b: &BvhData, rays: &[Ray]) {
+    let cpu = Tracer::new(&NATIVE, s, None).unwrap().with_bvh(b).unwrap();
+    let oracle = cpu.closest_hits(Accel::BRUTE, rays).unwrap();
+    let oracle_any = cpu.any_hits(Accel::BRUTE, rays).unwrap();
+    common::assert_matches_oracle(&format!("{name}: native"), &cpu, Accel::BVH, rays, &oracle, &oracle_any);
+    if let Some(g) = common::gpu() {
+        let gpu = Tracer::new(g, s, None).unwrap().with_bvh(b).unwrap();
+        let hits = gpu.closest_hits(Accel::BVH, rays).unwrap();
+        let agree = |a: &Hit, b: &Hit| a.prim == b.prim || (a.is_hit() && b.is_hit() && (a.t - b.t).abs() <= 1e-6 * a.t.abs());
+        let bad: Vec<usize> = (0..rays.len()).filter(|&i| !agree(&hits[i], &oracle[i])).collect();
+        if let Some(&i) = bad.first() {
+            let brute = gpu.closest_hits(Accel::BRUTE, &rays[i..i + 1]).unwrap()[0];
+            panic!("{name}: GPU BVH differs from the oracle on {} of {} rays; first: {:?} gives {:?}, oracle {:?}, GPU brute force {brute:?}", bad.len(), rays.len(), rays[i], hits[i], oracle[i]);
+        }
+        let any = gpu.any_hits(Accel::BVH, rays).unwrap();
+        let bad = (0..rays.len()).filter(|&i| any[i] != oracle_any[i]).count();
+        assert!(bad as f64 <= 1e-4 * rays.len() as f64, "{name}: GPU BVH any-hit differs on {bad} of {} rays", rays.len());
+        println!("{name}: {} on {} rays agrees with the oracle", g.name(), rays.len());
+    }
+}
+
+#[test]
+fn built_in_scenes_build_valid_trees_that_find_the_oracles_hits() {
+    for name in ["cornell", "cornell-glass", "cornell-chair", "chairs:16"] {
+        let s = scene::load(name).unwrap();
+        let b = check_structure(name, &s);
+        check_hits(name, &s, &b, &rays_for(&s, 50_000, 7));
+    }
+}
+
+#[test]
+fn no_triangles_one_triangle_and_many_at_one_point() {
+    // No triangles (a scene refuses that; the builder and the traversal must not break).
+    let b = bvh::try_build(&[]).unwrap();
+    b.validate(0).unwrap();
+    assert_eq!((b.nodes.len(), b.tris.len()), (1, 0));
+    let ray = Ray::new([0.0; 3], [0.0, 0.0, 1.0], 0.0, f32::INFINITY);
+    let mut q = Closest::new(&ray);
+    kdray_shared::bvh::traverse(&Bvh { nodes: &b.nodes, tris: &b.tris }, &ray, &mut q, &mut NoStats);
+    assert!(!q.hit.is_hit());
+
+    let one = common::mesh_scene("one", &[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], &[[0, 1, 2]]);
+    let b = check_structure("one", &one);
+    check_hits("one", &one, &b, &rays_for(&one, 4_000, 3));
+
+    // 3 000 copies of two triangles: every centroid at one of two points, so the SAH finds
+    // nothing and object medians must split (and stay within the depth limit).
+    let v = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+    let f: Vec<[u32; 3]> = (0..3000).flat_map(|_| [[0, 1, 2], [0, 1, 3]]).collect();
+    let stacked = common::mesh_scene("stacked", &v, &f);
+    let b = check_structure("stacked", &stacked);
+    check_hits("stacked", &stacked, &b, &rays_for(&stacked, 4_000, 5));
+}
+
+/// Triangles at positions 0.8^k (k = 0..120; sizes stay far from f32's subnormals, which GPUs
+/// flush to zero): the SAH peels one off per level, a chain far
+/// deeper than the traversal stack; the builder balances the rest once the depth runs out.
+#[test]
+fn a_chain_deeper_than_the_stack_is_balanced() {
+    let mut v = Vec::new();
+    let mut f = Vec::new();
+    for k in 0..120 {
+        let x = (0.8f32).powi(k);
+        let s = x * 0.2;
+        let i = v.len() as u32;
+        v.extend([[x, 0.0, 0.0], [x + s, 0.0, 0.0], [x, s, 0.0]]);
+        f.push([i, i + 1, i + 2]);
+    }
+    let chain = common::mesh_scene("chain", &v, &f);
+    let b = check_structure("chain", &chain);
+    let rays: Vec<Ray> = (0..120).map(|k| {
+        let x = (0.8f32).powi(k);
+        Ray::new([x + x * 0.05, x * 0.05, 1.0], [0.0, 0.0, -1.0], 0.0, f32::INFINITY)
+    }).collect();
+    check_hits("chain", &chain, &b, &rays);
+    let t = Tracer::new(&NATIVE, &chain, None).unwrap().with_bvh(&b).unwrap();
+    let hits = t.closest_hits(Accel::BVH, &rays).unwrap();
+    assert_eq!(hits.iter().filter(|h| h.is_hit()).count(), 120, "every triangle of the chain is hit");
+}
+
+/// Coordinates far from 1 and from the origin (as far as the triangle test's products stay in
+/// `f32`'s range: ~1e±19), and a triangle spanning nearly all of `f32`: the quantisation grid
+/// stays exact (no subnormal coordinate, no overflow) and no hit is lost.
+#[test]
+fn huge_tiny_and_far_coordinates() {
+    for (name, center, radius) in [("huge", Vec3::splat(1e17), 3e16), ("tiny", Vec3::splat(3e-8), 1e-8), ("far", Vec3::new(-3.0e7, 1.0e5, 7.0e6), 0.5)] {
+        let (v, f) = common::icosphere(center, radius, 3);
+        let s = common::mesh_scene(name, &v, &f);
+        let b = check_structure(name, &s);
+        let rays: Vec<Ray> = common::random_dirs(20_000, 9).into_iter().map(|d| Ray::new(center.to_array(), d, 0.0, f32::INFINITY)).collect();
+        check_hits(name, &s, &b, &rays);
+        let t = Tracer::new(&NATIVE, &s, None).unwrap().with_bvh(&b).unwrap();
+        let misses = t.closest_hits(Accel::BVH, &rays).unwrap().iter().filter(|h| !h.is_hit()).count();
+        assert_eq!(misses, 0, "{name}: {misses} rays from the centre leaked");
+    }
+    let mut big = Vec::new();
+    big.extend([[-3e38f32, 0.0, 0.0], [3e38, 0.0, 0.0], [0.0, 3e38, 1.0]]);
+    let s = common::mesh_scene("limits", &big, &[[0, 1, 2]]);
+    match bvh::try_build(&s.triangles) {
+        Ok(b) => check_hits("limits", &s, &b, &[Ray::new([0.0, 1.0, 5.0], [0.0, 0.0, -1.0], 0.0, f32::INFINITY)]),
+        Err(e) => assert!(e.to_string().contains("quantise"), "{e}"),
+    }
+}
+
+/// A BVH that does not belong to the scene, or whose nodes were edited, is an error from
+/// `Tracer::with_bvh`, never an out-of-range read in a kernel.
+#[test]
+fn foreign_or_corrupt_trees_are_refused() {
+    let cornell = scene::load("cornell").unwrap();
+    let chair = scene::load("cornell-chair").unwrap();
+    let b = bvh::build(&chair.triangles);
+    let e = Tracer::new(&NATIVE, &cornell, None).unwrap().with_bvh(&b).err().expect("a foreign BVH");
+    assert!(e.to_string().contains("BVH"), "{e}");
+    let good = bvh::build(&cornell.triangles);
+    let corrupt: [(&str, fn(&mut BvhData)); 4] = [
+        ("child index", |b| b.nodes[0].bases_meta[0] = u32::MAX - 4),
+        ("triangle index", |b| b.tris[0]._pad = 1 << 30),
+        ("backwards child", |b| {
+            let last = b.nodes.len() - 1;
+            b.nodes[last].origin_exp[3] |= 1 << 24;
+            b.nodes[last].bases_meta[2] = (b.nodes[last].bases_meta[2] & !0xff) | 0b001_11000;
+            b.nodes[last].bases_meta[0] = 0;
+        }),
+        ("meta byte", |b| b.nodes[0].bases_meta[2] ^= 0b101_00000),
+    ];
+    for (what, f) in corrupt {
+        let mut b = good.clone();
+        f(&mut b);
+        assert!(Tracer::new(&NATIVE, &cornell, None).unwrap().with_bvh(&b).is_err(), "{what}: accepted");
+    }
+    assert!(Tracer::new(&NATIVE, &cornell, None).unwrap().closest_hits(Accel::BVH, &[]).is_err(), "no BVH built");
+}
+
+#[test]
+fn stanford_bunny_from_shared_scenes() {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/scenes/stanford-bunny.obj");
+    if !std::path::Path::new(path).exists() {
+        eprintln!("skipped: {path} not present (the shared scenes folder lies beside the checkout)");
+        return;
+    }
+    let s = scene::load(path).unwrap();
+    let b = check_structure("bunny", &s);
+    check_hits("bunny", &s, &b, &rays_for(&s, 50_000, 13));
+}
