@@ -193,8 +193,18 @@ fn foreign_or_corrupt_trees_are_refused() {
     let b = bvh::build(&chair.triangles);
     let e = Tracer::new(&NATIVE, &cornell, None).unwrap().with_bvh(&b).err().expect("a foreign BVH");
     assert!(e.to_string().contains("BVH"), "{e}");
+    // The same scene edited after the build: as many triangles, one vertex moved.
     let good = bvh::build(&cornell.triangles);
-    let corrupt: [(&str, fn(&mut BvhData)); 4] = [
+    let mut edited = cornell.clone();
+    edited.triangles[5].v1[1] += 1.0;
+    let e = Tracer::new(&NATIVE, &edited, None).unwrap().with_bvh(&good).err().expect("a stale BVH");
+    assert!(e.to_string().contains("other triangles"), "{e}");
+    let corrupt: [(&str, fn(&mut BvhData)); 6] = [
+        ("shared triangles", |b| {
+            let n = b.nodes.len() - 1;
+            b.nodes[n].bases_meta[1] = b.nodes[0].bases_meta[1];
+        }),
+        ("grid step", |b| b.nodes[0].origin_exp[3] = (b.nodes[0].origin_exp[3] & !0xff) | 3),
         ("child index", |b| b.nodes[0].bases_meta[0] = u32::MAX - 4),
         ("triangle index", |b| b.tris[0]._pad = 1 << 30),
         ("backwards child", |b| {

@@ -23,7 +23,7 @@ fn trace4<Q: Query + BruteForce, S: Stats>(tree: &KdTree, accel: Accel, rays: &[
     let mut q = rays.each_ref().map(Q::new);
     match (accel.structure, accel.grouping, accel.pipeline) {
         (Structure::Brute, _, _) => q.iter_mut().zip(rays).for_each(|(q, r)| q.brute(r, tree.tris)),
-        (Structure::Bvh, _, _) => panic!("the BVH's counts are `bvh_counts`"),
+        (Structure::Bvh, _, _) => unreachable!("`counts` refuses the BVH"),
         (_, _, Pipeline::Decomposed { capacity }) => {
             for (q, r) in q.iter_mut().zip(rays) {
                 let l = kdtree::record_leaves(tree, r, capacity, stats);
@@ -44,6 +44,9 @@ fn trace4<Q: Query + BruteForce, S: Stats>(tree: &KdTree, accel: Accel, rays: &[
 /// Traversal counters of `accel` (closest hit if `closest`, else any hit), one per group of
 /// four rays in order: a packet's node and leaf visits are counted once for its four rays.
 pub fn counts(tris: &[Triangle], tree: &KdTreeData, accel: Accel, rays: &[Ray], closest: bool) -> Result<Vec<Counters>> {
+    if accel.needs_bvh() {
+        crate::error::bail!(InvalidInput: "the BVH's counts come from `bvh_counts`");
+    }
     let t = tree.view(tris);
     Ok(rays
         .par_chunks(PACKET)

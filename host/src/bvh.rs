@@ -27,7 +27,7 @@ use std::collections::VecDeque;
 /// SAH bins per axis.
 const BINS: usize = 16;
 /// Relative cost of visiting a node (a triangle test costs 1).
-const NODE_COST: f32 = 1.0;
+const NODE_COST: f64 = 1.0;
 /// Triangles above which subtrees are built in parallel.
 const PARALLEL: usize = 4096;
 
@@ -66,11 +66,12 @@ impl Bounds {
             self.hi[a] = self.hi[a].max(p[a]);
         }
     }
-    fn area(&self) -> f32 {
+    /// Surface area, in f64 (f32 overflows from coordinates of ~1e19 on).
+    fn area(&self) -> f64 {
         if self.lo[0] > self.hi[0] {
             return 0.0;
         }
-        let d = [self.hi[0] - self.lo[0], self.hi[1] - self.lo[1], self.hi[2] - self.lo[2]];
+        let d = [(self.hi[0] - self.lo[0]) as f64, (self.hi[1] - self.lo[1]) as f64, (self.hi[2] - self.lo[2]) as f64];
         2.0 * (d[0] * d[1] + d[1] * d[2] + d[2] * d[0])
     }
     fn centroid(&self) -> [f32; 3] {
@@ -107,7 +108,7 @@ fn build2(inp: &Input, prims: &mut [u32], offset: usize, depth: usize, cost: &mu
         cb.grow_point(inp.centroids[p as usize]);
     }
     let leaf = |cost: &mut f64| {
-        *cost += (b.area() * n as f32) as f64;
+        *cost += b.area() * n as f64;
         Node2::Leaf { b, first: offset, count: n }
     };
     // Levels a balanced split of the rest would still need: past the depth that leaves,
@@ -120,7 +121,7 @@ fn build2(inp: &Input, prims: &mut [u32], offset: usize, depth: usize, cost: &mu
     let split = if must_balance { None } else { sah_split(inp, prims, &b, &cb) };
     let mid = match split {
         Some((axis, bin, split_cost)) => {
-            if n <= MAX_LEAF_TRIS && split_cost >= n as f32 {
+            if n <= MAX_LEAF_TRIS && split_cost >= n as f64 {
                 return leaf(cost);
             }
             let (k, e) = (cb.lo[axis], cb.hi[axis] - cb.lo[axis]);
@@ -141,7 +142,7 @@ fn build2(inp: &Input, prims: &mut [u32], offset: usize, depth: usize, cost: &mu
         None if n <= MAX_LEAF_TRIS => return leaf(cost),
         None => median(inp, prims, &cb),
     };
-    *cost += (b.area() * NODE_COST) as f64;
+    *cost += b.area() * NODE_COST;
     let (l, r) = prims.split_at_mut(mid);
     let (mut cl, mut cr) = (0.0, 0.0);
     let (a, c) = if n > PARALLEL {
@@ -159,9 +160,9 @@ fn bin_of(c: f32, lo: f32, extent: f32) -> usize {
 
 /// The best binned SAH split: axis, last bin of the left side, and cost relative to the node's
 /// area (in triangle tests). `None` if every centroid is the same point.
-fn sah_split(inp: &Input, prims: &[u32], b: &Bounds, cb: &Bounds) -> Option<(usize, usize, f32)> {
-    let mut best: Option<(usize, usize, f32)> = None;
-    let parent = b.area().max(f32::MIN_POSITIVE);
+fn sah_split(inp: &Input, prims: &[u32], b: &Bounds, cb: &Bounds) -> Option<(usize, usize, f64)> {
+    let mut best: Option<(usize, usize, f64)> = None;
+    let parent = b.area().max(f64::MIN_POSITIVE);
     for axis in 0..3 {
         let e = cb.hi[axis] - cb.lo[axis];
         if !(e > 0.0) {
@@ -174,7 +175,7 @@ fn sah_split(inp: &Input, prims: &[u32], b: &Bounds, cb: &Bounds) -> Option<(usi
             count[k] += 1;
             boxes[k].grow(&inp.boxes[p as usize]);
         }
-        let mut right_area = [0.0f32; BINS];
+        let mut right_area = [0.0f64; BINS];
         let mut right_count = [0usize; BINS];
         let (mut rb, mut rc) = (Bounds::EMPTY, 0);
         for k in (1..BINS).rev() {
@@ -191,7 +192,7 @@ fn sah_split(inp: &Input, prims: &[u32], b: &Bounds, cb: &Bounds) -> Option<(usi
             if lc == 0 || rc == 0 {
                 continue;
             }
-            let c = NODE_COST + (lb.area() * lc as f32 + right_area[k + 1] * rc as f32) / parent;
+            let c = NODE_COST + (lb.area() * lc as f64 + right_area[k + 1] * rc as f64) / parent;
             if best.is_none_or(|(_, _, bc)| c < bc) {
                 best = Some((axis, k, c));
             }
@@ -304,11 +305,14 @@ pub fn build(tris: &[Triangle]) -> BvhData {
     try_build(tris).expect("BVH build")
 }
 
-/// Builds the compressed 8-wide BVH over `tris`; fails on coordinates too large to quantise
-/// or more triangles or nodes than 32-bit indices can hold.
+/// Builds the compressed 8-wide BVH over `tris`; fails on a vertex that is not finite,
+/// coordinates too large to quantise, or more triangles or nodes than 32-bit indices can hold.
 pub fn try_build(tris: &[Triangle]) -> Result<BvhData> {
     if tris.len() >= (1usize << 31) {
         bail!(TooLarge: "{} triangles: the BVH indexes at most 2^31", tris.len());
+    }
+    if let Some(i) = tris.iter().position(|t| [t.v0, t.v1, t.v2].iter().flatten().any(|c| !c.is_finite())) {
+        bail!(InvalidInput: "triangle {i} has a vertex that is not a finite number");
     }
     let boxes: Vec<Bounds> = tris
         .iter()
@@ -327,7 +331,7 @@ pub fn try_build(tris: &[Triangle]) -> Result<BvhData> {
     let mut prims: Vec<u32> = (0..tris.len() as u32).collect();
     let mut cost = 0.0;
     let root = build2(&Input { boxes: &boxes, centroids: &centroids }, &mut prims, 0, 0, &mut cost);
-    let root_area = root.bounds().area().max(f32::MIN_POSITIVE) as f64;
+    let root_area = root.bounds().area().max(f64::MIN_POSITIVE);
 
     let mut nodes = vec![BvhNode::default()];
     let mut out_tris: Vec<Triangle> = Vec::with_capacity(tris.len());
@@ -396,8 +400,10 @@ pub fn try_build(tris: &[Triangle]) -> Result<BvhData> {
 
 impl BvhData {
     /// Checks what the kernels rely on for a scene of `scene_tris` triangles: every child node
-    /// after its parent and in range, every leaf's triangles in range and each once, every
-    /// scene index in range, each child box inside its node's grid, depth ≤ `MAX_BVH_DEPTH`.
+    /// after its parent, in range and with one parent; every leaf's triangles in range and
+    /// every triangle in exactly one leaf; every scene index named once; grid steps whose
+    /// exponents the builder can produce (2^-100 to 2^119); depth ≤ `MAX_BVH_DEPTH`. (Whether
+    /// boxes enclose their triangles is the builder's to guarantee: `tests/bvh.rs` checks it.)
     pub fn validate(&self, scene_tris: usize) -> Result<()> {
         let n = self.nodes.len();
         if n == 0 {
@@ -415,7 +421,12 @@ impl BvhData {
         }
         let mut level = vec![0usize; n];
         level[0] = 1;
+        let mut in_leaf = vec![false; self.tris.len()];
         for (i, node) in self.nodes.iter().enumerate() {
+            let e = node.origin_exp.w;
+            if node.origin_exp.w & 0x00ff_ffff != 0 && (0..3).any(|a| !(27..=246).contains(&((e >> (8 * a)) & 0xff))) {
+                bail!(InvalidInput: "BVH node {i}: a grid step outside 2^-100..2^119");
+            }
             let inner = node.imask().count_ones() as usize;
             let base = node.child_base() as usize;
             if inner > 0 && (base <= i || base + inner > n) {
@@ -447,6 +458,11 @@ impl BvhData {
                         bail!(InvalidInput: "BVH node {i}: slot {s}'s triangles out of range or shared");
                     }
                     covered |= bits;
+                    for k in node.tri_base() as usize + off as usize..node.tri_base() as usize + (off + count) as usize {
+                        if std::mem::replace(&mut in_leaf[k], true) {
+                            bail!(InvalidInput: "BVH triangle {k} lies in two leaves");
+                        }
+                    }
                 }
             }
             let mut k = 0;
@@ -463,6 +479,9 @@ impl BvhData {
                     }
                 }
             }
+        }
+        if let Some(k) = in_leaf.iter().position(|c| !c) {
+            bail!(InvalidInput: "BVH triangle {k} lies in no leaf");
         }
         Ok(())
     }

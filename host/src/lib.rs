@@ -1,4 +1,5 @@
-//! kdray: kd-tree ray casting and photon mapping written once in Rust (`kdray-shared`), run
+//! kdray: ray casting (a compressed wide BVH, kd-tree traversals) and photon mapping written
+//! once in Rust (`kdray-shared`), run
 //! natively on the CPU and as SPIR-V compute kernels on any Vulkan GPU through wgpu. The
 //! kernels come compiled (the committed SPIR-V in `kernels/`), so the library builds on stable
 //! Rust.
@@ -27,7 +28,8 @@
 //! `kernels` (every kernel family declared once), `tracer` (closest/any-hit queries over an
 //! acceleration structure), `integrator` (what a pixel computes, as schedules of passes:
 //! direct light, path tracing, progressive photon mapping), `scene` (OBJ/MTL, TOML, built-in
-//! and procedural scenes, meshes as arrays), `kdtree` (the SAH builder), `image_out` (PNG,
+//! and procedural scenes, meshes as arrays), `kdtree` (the SAH builder), `bvh` (the compressed
+//! wide BVH's builder), `image_out` (PNG,
 //! PFM, OpenEXR with AOVs), `files` (outputs written atomically), `error` (`kdray::Error`).
 //! The command line and the benchmarks are the `kdray` binary (feature `cli`, on by default;
 //! `default-features = false` leaves out its dependencies).

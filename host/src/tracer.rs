@@ -1,5 +1,6 @@
 //! Closest-hit and any-hit queries on one runtime: the scene's buffers, the acceleration
-//! structure (an enum that owns its arrays), and the passes that answer a query with a given
+//! structures (the kd-tree or none, an enum that owns its arrays; the wide BVH beside it), and
+//! the passes that answer a query with a given
 //! `Accel` — one kernel, or the decomposed pipeline's three. Integrators build their schedules
 //! from `query_passes`; nothing here knows which runtime it runs on.
 use crate::accel::{Accel, Grouping, Pipeline, Structure};
@@ -18,7 +19,7 @@ use kdray_shared::{Hit, Light, Material, Ray, TraceParams, Triangle};
 /// Upper bound on ray-triangle tests of one brute-force submission.
 const MAX_TESTS_PER_SUBMIT: u64 = 1 << 30;
 /// Upper bound on rays of one kd-tree or BVH submission (each visits O(log N) nodes).
-const MAX_KD_RAYS_PER_SUBMIT: u64 = 1 << 22;
+const MAX_TREE_RAYS_PER_SUBMIT: u64 = 1 << 22;
 /// Rays per batch on the native runtime (bounds the decomposed pipeline's leaf lists).
 const NATIVE_BATCH: u64 = 1 << 18;
 
@@ -43,6 +44,17 @@ pub struct BvhBuffers {
     pub nodes: Buffer<BvhNode>,
     /// The triangles in leaf order, each with its scene index in `_pad`.
     pub tris: Buffer<Triangle>,
+}
+
+/// FNV-1a over the triangles' vertices, material and face ids, in order.
+fn geometry_fingerprint<'a>(tris: impl Iterator<Item = &'a Triangle>) -> u64 {
+    let mut h = 0xcbf2_9ce4_8422_2325u64;
+    for t in tris {
+        for w in t.v0.iter().chain(&t.v1).chain(&t.v2).map(|c| c.to_bits()).chain([t.material, t.face]) {
+            h = (h ^ w as u64).wrapping_mul(0x0100_0000_01b3);
+        }
+    }
+    h
 }
 
 /// The decomposed pipeline's per-batch buffers: leaf lists (`capacity` entries per ray) and
@@ -81,6 +93,8 @@ pub struct Tracer<'r> {
     /// Any mirror or glass: only then are specular bounces traced.
     pub has_specular: bool,
     tri_count: u64,
+    /// `geometry_fingerprint` of the scene's triangles (a BVH must hold the same ones).
+    tri_fingerprint: u64,
     /// Buffers of earlier queries, reused by later ones (by label and size).
     pool: std::sync::Mutex<Vec<(&'static str, RawBuffer)>>,
 }
@@ -124,6 +138,7 @@ impl<'r> Tracer<'r> {
             light_count: lights.len() as u32,
             has_specular: scene.has_specular(),
             tri_count: scene.triangles.len() as u64,
+            tri_fingerprint: geometry_fingerprint(scene.triangles.iter()),
             pool: std::sync::Mutex::new(Vec::new()),
         })
     }
@@ -133,6 +148,13 @@ impl<'r> Tracer<'r> {
     /// the kernels trust it.
     pub fn with_bvh(mut self, bvh: &BvhData) -> Result<Self> {
         bvh.validate(self.tri_count as usize)?;
+        // Its triangles are copies: they must be this scene's (a BVH of another scene with as
+        // many triangles, or of this one before an edit, would find hits on other geometry).
+        let mut order: Vec<&Triangle> = bvh.tris.iter().collect();
+        order.sort_by_key(|t| t._pad);
+        if geometry_fingerprint(order.into_iter()) != self.tri_fingerprint {
+            bail!(InvalidInput: "the BVH was built over other triangles than this scene's");
+        }
         self.bvh = Some(BvhBuffers { nodes: self.rt.upload("BVH node", &bvh.nodes)?, tris: self.rt.upload("BVH triangle", &bvh.tris)? });
         Ok(self)
     }
@@ -215,7 +237,7 @@ impl<'r> Tracer<'r> {
         let by_binding = self.rt.max_binding() / record;
         let mut by_work = match accel.structure {
             Structure::Brute => (MAX_TESTS_PER_SUBMIT / self.tri_count.max(1)).max(4096),
-            Structure::KdTree | Structure::Bvh => MAX_KD_RAYS_PER_SUBMIT,
+            Structure::KdTree | Structure::Bvh => MAX_TREE_RAYS_PER_SUBMIT,
         };
         if self.rt.is_native() {
             by_work = by_work.min(NATIVE_BATCH);

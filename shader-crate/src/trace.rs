@@ -71,11 +71,11 @@ trace_kernels!(closest_shortstack2, any_shortstack2, trace, Kd<Short<2>>);
 trace_kernels!(closest_shortstack3, any_shortstack3, trace, Kd<Short<3>>);
 trace_kernels!(closest_shortstack4, any_shortstack4, trace, Kd<Short<4>>);
 trace_kernels!(closest_shortstack8, any_shortstack8, trace, Kd<Short<8>>);
-// Four rays per thread (Horn et al.'s packets).
 // The compressed 8-wide BVH: `bvh` holds its nodes and `bvh_tris` the triangles in leaf
 // order (each with its scene index); the scene's `tris` are not needed. (Its bindings have no
 // gap: with binding numbers 0, 1, 3, 4, 5 lavapipe 22.3 ran the kernel without writing `out`.)
 trace_kernels!(closest_bvh, any_bvh, trace_wide);
+// Four rays per thread (Horn et al.'s packets).
 trace_kernels!(closest_packet_stack, any_packet_stack, trace_packet, Full);
 trace_kernels!(closest_packet_restart, any_packet_restart, trace_packet, Restart);
 trace_kernels!(closest_packet_pushdown, any_packet_pushdown, trace_packet, PushDown);

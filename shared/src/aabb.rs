@@ -2,10 +2,8 @@
 //!
 //! A direction component of +0, −0 or one so small that its reciprocal overflows is treated as
 //! parallel to that slab: the ray is inside the slab iff its origin is (bounds inclusive), and
-//! the slab does not constrain t. This falls out of IEEE arithmetic without a branch (`slab`):
-//! the only NaN, 0·∞ for an origin on a bound, fails every comparison and so constrains
-//! nothing. The far distance is widened by 2γ(3) as in pbrt so rounding never loses a hit on
-//! the box boundary.
+//! the slab does not constrain t. No 0·∞ NaN ever reaches a comparison. The far distance is
+//! widened by 2γ(3) as in pbrt so rounding never loses a hit on the box boundary.
 use crate::math::gamma;
 
 /// An axis-aligned box given by its minimum and maximum corners.
@@ -25,17 +23,23 @@ pub fn inv_dir(d: [f32; 3]) -> [f32; 3] {
 
 /// One slab of a box along one axis: the parametric distances where the ray (origin `o`,
 /// reciprocal direction `inv`, `neg` when the direction is negative) crosses the near and the
-/// far plane of [`lo`, `hi`], the far one widened by 2γ(3). Branch-free for a direction too
-/// small to invert (`inv` = ±∞, parallel to the slab): IEEE arithmetic gives −∞/∞ (no
-/// constraint) when the origin lies strictly inside, ∞ or −∞ (empty) when it lies outside, and
-/// NaN (no constraint: callers compare with `>`/`<`, false for NaN) when it lies on a bound
-/// (bounds inclusive).
+/// far plane of [`lo`, `hi`], the far one widened by 2γ(3). A direction too small to invert is
+/// parallel: (−∞, ∞) when the origin lies in the slab (bounds inclusive), else (∞, −∞); no
+/// 0·∞ NaN is formed (drivers need not honour NaN comparisons).
 #[inline(always)]
 pub fn slab(o: f32, inv: f32, lo: f32, hi: f32, neg: bool) -> (f32, f32) {
-    let (a, b) = if neg { (hi, lo) } else { (lo, hi) };
-    let near = (a - o) * inv;
-    let far = (b - o) * inv;
-    (near, far * (1.0 + 2.0 * gamma(3)))
+    if inv.is_infinite() {
+        if o < lo || o > hi {
+            (f32::INFINITY, f32::NEG_INFINITY)
+        } else {
+            (f32::NEG_INFINITY, f32::INFINITY)
+        }
+    } else {
+        let (a, b) = if neg { (hi, lo) } else { (lo, hi) };
+        let near = (a - o) * inv;
+        let far = (b - o) * inv;
+        (near, far * (1.0 + 2.0 * gamma(3)))
+    }
 }
 
 /// The parametric interval where the ray overlaps the box, clipped to [t0, t1]; `None` if empty.

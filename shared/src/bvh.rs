@@ -18,16 +18,18 @@
 //! Rules that keep the traversal exact (the same hits as the brute-force oracle):
 //! * the quantisation grid is chosen so that every stored box coordinate `origin + step · q`
 //!   is exactly representable in `f32` (the origin is a multiple of the step and lies within
-//!   2^23 steps of zero), and the stored box encloses the child's true box; the kernel
+//!   2^24 − 256 steps of zero), and the stored box encloses the child's true box; the kernel
 //!   reconstructs it exactly;
-//! * the box test is `aabb`'s slab test (far distance widened by 2γ(3), a direction component
-//!   too small to invert treats the slab as parallel), so rounding never culls a box that a
+//! * the box test takes one multiply-add per plane and accepts a box whose interval is empty by
+//!   less than a bound on that rounding (`fast_children`); where the bound does not hold (a
+//!   direction parallel to an axis, steps in ray units that overflow or underflow) it is
+//!   `aabb`'s slab test of the exactly reconstructed box; so rounding never culls a box that a
 //!   hit triangle lies in;
 //! * a child is culled only when its box starts beyond the best hit so far (or ends before the
 //!   ray's `t_min`) by more than the rounding of both distances (`widened`), so a triangle at
 //!   the same `t` with a lower index (the tie rule) is still tested;
 //! * every loop is bounded by the node count; invalid rays (`Ray::is_valid`) are misses.
-use crate::aabb::{inv_dir, slab};
+use crate::aabb::{intersect_box, inv_dir, Aabb};
 use crate::pod::Triangle;
 use crate::query::Query;
 use crate::ray::Ray;
@@ -161,6 +163,8 @@ struct BoxRay {
     neg: [u32; 3],
     /// 7 − the ray's octant (bit 2: x < 0, bit 1: y < 0, bit 0: z < 0).
     oct_inv: u32,
+    /// Every |1/d| ≥ 2^-26, so every node's step in ray units is a normal number.
+    normal_steps: bool,
 }
 
 /// The hit bits of a child with meta byte `m` (0 for an empty slot, so an empty slot's box
@@ -173,9 +177,9 @@ fn child_bits(m: u32, oct_inv: u32) -> u32 {
 
 /// The hit mask of `node`'s children for `r` within [`t_min`, `t_max`]: node slots in bits
 /// 24..32 (slot s at bit `24 + (s ^ oct_inv)`), leaf triangles in bits 0..24 (offsets from the
-/// node's first leaf triangle). The fast form where the node's grid in ray units is finite
-/// (`fast_children`), else the exact slab test of every stored box (`exact_children`: a
-/// direction parallel to an axis, or a step times a reciprocal that overflows).
+/// node's first leaf triangle). The fast form where the node's grid in ray units is normal and
+/// finite (`fast_children`), else the exact slab test of every stored box (`exact_children`: a
+/// direction parallel to an axis, or a step times a reciprocal that overflows or underflows).
 #[inline(always)]
 fn intersect_children(node: &BvhNode, r: &BoxRay, t_min: f32, t_max: f32) -> u32 {
     let o = node.origin();
@@ -183,41 +187,28 @@ fn intersect_children(node: &BvhNode, r: &BoxRay, t_min: f32, t_max: f32) -> u32
     let adj_inv = [st[0] * r.inv[0], st[1] * r.inv[1], st[2] * r.inv[2]];
     let rel = [o[0] - r.origin[0], o[1] - r.origin[1], o[2] - r.origin[2]];
     let adj_o = [rel[0] * r.inv[0], rel[1] * r.inv[1], rel[2] * r.inv[2]];
-    let finite = adj_inv[0].is_finite() && adj_inv[1].is_finite() && adj_inv[2].is_finite() && adj_o[0].is_finite() && adj_o[1].is_finite() && adj_o[2].is_finite();
-    if finite {
+    // Finite steps and offsets in ray units, and normal steps: `r.normal_steps` (steps are at
+    // least 2^-100, so |1/d| ≥ 2^-26 keeps every step normal; a subnormal one would round
+    // absolutely, and GPUs flush it), checked once per ray.
+    let fast = r.normal_steps && adj_inv[0].is_finite() && adj_inv[1].is_finite() && adj_inv[2].is_finite() && adj_o[0].is_finite() && adj_o[1].is_finite() && adj_o[2].is_finite();
+    if fast {
         fast_children(node, r, adj_inv, adj_o, rel, st, t_min, t_max)
     } else {
         exact_children(node, r, t_min, t_max)
     }
 }
 
-/// Every stored box by `aabb::slab` (coordinates reconstructed exactly, far planes widened).
+/// Every stored box by `aabb::intersect_box` (coordinates reconstructed exactly, far planes
+/// widened, parallel axes without NaN).
 #[inline(always)]
 fn exact_children(node: &BvhNode, r: &BoxRay, t_min: f32, t_max: f32) -> u32 {
-    let o = node.origin();
-    let st = node.steps();
     let mut mask = 0u32;
     let mut s = 0u32;
     while s < BVH_WIDTH as u32 {
         let m = node.meta(s);
         if m != META_EMPTY {
-            let (ql, qh) = node.quantised(s);
-            let mut t0 = t_min;
-            let mut t1 = t_max;
-            let mut a = 0;
-            while a < 3 {
-                let lo = o[a] + st[a] * ql[a] as f32;
-                let hi = o[a] + st[a] * qh[a] as f32;
-                let (near, far) = slab(r.origin[a], r.inv[a], lo, hi, r.neg[a] != 0);
-                if near > t0 {
-                    t0 = near;
-                }
-                if far < t1 {
-                    t1 = far;
-                }
-                a += 1;
-            }
-            if t0 <= t1 {
+            let (min, max) = node.child_box(s);
+            if intersect_box(r.origin, r.inv, &Aabb { min, max }, t_min, t_max).is_some() {
                 mask |= child_bits(m, r.oct_inv);
             }
         }
@@ -287,13 +278,14 @@ pub fn traverse<Q: Query, S: Stats>(bvh: &Bvh, ray: &Ray, q: &mut Q, stats: &mut
     // Signs of the reciprocals (−0 gives −∞: negative, as `slab` needs).
     let neg = [(inv[0] < 0.0) as u32, (inv[1] < 0.0) as u32, (inv[2] < 0.0) as u32];
     let inv_dmax = 1.0 / d[0].abs().max(d[1].abs()).max(d[2].abs());
-    let br = BoxRay { origin: ray.origin, inv, neg, oct_inv: 7 - (neg[0] << 2 | neg[1] << 1 | neg[2]) };
+    let min_inv = inv[0].abs().min(inv[1].abs()).min(inv[2].abs());
+    let br = BoxRay { origin: ray.origin, inv, neg, oct_inv: 7 - (neg[0] << 2 | neg[1] << 1 | neg[2]), normal_steps: min_inv >= 1.0 / 67_108_864.0 };
     let mut stack = [[0u32; 2]; MAX_BVH_DEPTH];
     let mut sp = 0usize;
     // The root as the only node of a group with no internal mask: bit 31, relative index 0.
     let mut nodes = [0u32, 1 << 31];
-    // Hang guard: each node is entered at most once and each step enters one or pops one.
-    let max_steps = 2 * n_nodes + 2;
+    // Hang guard: every step enters one node, and a tree enters each node at most once.
+    let max_steps = n_nodes.min(u32::MAX - 1) + 1;
     let mut steps = 0u32;
     while steps < max_steps {
         steps += 1;

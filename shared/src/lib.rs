@@ -1,6 +1,7 @@
 //! One source for CPU and GPU: everything here compiles natively and, through rust-gpu,
 //! to SPIR-V. Buffer types are `#[repr(C)]` + `Pod` built from `f32`/`u32` arrays only, so the
-//! byte layout is identical on both sides (no `Vec3` in buffers).
+//! byte layout is identical on both sides (no `Vec3` in buffers); the one exception, the BVH
+//! node, is five `UVec4` at offsets that are multiples of 16, the same on both sides.
 //!
 //! ```
 //! use kdray_shared::{brute, Ray, Triangle};

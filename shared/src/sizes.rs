@@ -40,3 +40,7 @@ layout! {
     crate::stats::Counters => 16,
     crate::ray::Ray => 32,
 }
+
+// The BVH node: five 16-byte vectors (`UVec4`: 16-byte aligned in SPIR-V, 4 natively; its
+// offsets are multiples of 16 either way).
+const _: () = assert!(core::mem::size_of::<crate::bvh::BvhNode>() == 80, "size_of::<BvhNode>() is not 80");

@@ -619,7 +619,7 @@ fn render_accel(traversal: Option<&str>, packets: bool, pipeline: PipelineArg, l
             Ok(Accel::parse(&format!("decomposed:{leaf_capacity}"))?)
         }
         PipelineArg::Monolithic => {
-            // The BVH by default (on the H200 1.5-3.6x the kd kernels' rays, the photon-mapped
+            // The BVH by default (on the H200 1.5-3.4x the kd kernels' rays, the photon-mapped
             // Cornell box in half the time; natively no slower); packets are the kd-tree's.
             let accel = Accel::parse(traversal.unwrap_or(if packets { "shortstack" } else { "bvh" }))?;
             if !packets {
