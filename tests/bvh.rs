@@ -225,12 +225,7 @@ fn foreign_or_corrupt_trees_are_refused() {
 
 #[test]
 fn stanford_bunny_from_shared_scenes() {
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/scenes/stanford-bunny.obj");
-    if !std::path::Path::new(path).exists() {
-        eprintln!("skipped: {path} not present (the shared scenes folder lies beside the checkout)");
-        return;
-    }
-    let s = scene::load(path).unwrap();
+    let Some(s) = common::shared_scene("stanford-bunny.obj") else { return };
     let b = check_structure("bunny", &s);
     check_hits("bunny", &s, &b, &rays_for(&s, 50_000, 13));
 }

@@ -325,12 +325,7 @@ fn closed_sphere_far_from_origin_every_traversal() {
 
 #[test]
 fn stanford_bunny_from_shared_scenes() {
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/scenes/stanford-bunny.obj");
-    if !std::path::Path::new(path).exists() {
-        eprintln!("skipped: {path} not present (the shared scenes folder lies beside the checkout)");
-        return;
-    }
-    let scene = scene::load(path).unwrap();
+    let Some(scene) = common::shared_scene("stanford-bunny.obj") else { return };
     run_scene("bunny", &scene, 50_000);
 }
 

@@ -100,3 +100,14 @@ pub fn assert_matches_oracle(what: &str, t: &kdray::Tracer, accel: kdray::Accel,
     let bad = (0..rays.len()).filter(|&i| any[i] != oracle_any[i]).count();
     assert_eq!(bad, 0, "{what}: {} any-hit differs from the oracle on {bad} of {} rays", accel.name(), rays.len());
 }
+
+/// A mesh from `../shared/scenes/` (beside the checkout), or `None` with a message when that
+/// folder or file is absent: the tests that need one skip.
+pub fn shared_scene(file: &str) -> Option<Scene> {
+    let path = format!("{}/../../shared/scenes/{file}", env!("CARGO_MANIFEST_DIR"));
+    if !std::path::Path::new(&path).exists() {
+        eprintln!("skipped: {path} not present (the shared scenes folder lies beside the checkout)");
+        return None;
+    }
+    Some(kdray::scene::load(&path).unwrap())
+}
