@@ -7,7 +7,7 @@ mod common;
 use glam::Vec3;
 use kdray::accel::Accel;
 use kdray::integrator::path::{self, PathOptions};
-use kdray::integrator::photon::{self as pm, IndexKind, PhotonMap, PhotonOptions};
+use kdray::integrator::photon::{self as pm, FinalGather, IndexKind, PhotonMap, PhotonOptions};
 use kdray::integrator::RenderOutput;
 use kdray::kdtree::{self, BuildOptions, KdTreeData};
 use kdray::runtime::cpu::NATIVE;
@@ -129,7 +129,7 @@ fn emitted_photons_follow_the_lights_emission() {
 }
 
 fn small_options(index: IndexKind, photons: u32) -> PhotonOptions {
-    PhotonOptions { photons, passes: 1, index, ..Default::default() }
+    PhotonOptions { photons, passes: 1, index, final_gather: FinalGather::Off, ..Default::default() }
 }
 
 /// Checks an index built on `rt` against the records: a permutation, every photon in its own
@@ -159,7 +159,7 @@ fn check_index(map: &PhotonMap, tree: &KdTreeData, records: &[Photon], what: &st
         }
     }
     // Gathers at photon positions (offset) against brute force.
-    let gather = |x: [f32; 3], n: [f32; 3], m: u32| -> ([f32; 3], u32) {
+    let gather = |x: [f32; 3], n: [f32; 3], m: u32| -> kdray_shared::photon::Estimate {
         if p.kind == INDEX_KD {
             let kd = KdCells { nodes: &tree.nodes, leaves: table.as_deref().unwrap(), cells: p.cells };
             irradiance(&kd, &p, &sorted, &offsets, x, n, m)
@@ -173,18 +173,25 @@ fn check_index(map: &PhotonMap, tree: &KdTreeData, records: &[Photon], what: &st
         let r = p.radius[m as usize];
         let x = [ph.position[0] + 0.3 * r * ((k % 3) as f32 - 1.0), ph.position[1], ph.position[2] + 0.2 * r];
         let n = ph.normal();
-        let (e, found) = gather(x, n, m);
-        let (mut want, mut count) = ([0.0f64; 3], 0);
+        let est = gather(x, n, m);
+        let (e, found) = (est.irradiance, est.found);
+        let (mut want, mut count, mut other) = ([0.0f64; 3], 0, 0);
         for q in sorted.iter().filter(|q| (p.maps > 1 && q.is_caustic()) as u32 == m) {
             let d = Vec3::from(q.position) - Vec3::from(x);
-            if d.length_squared() <= r * r && Vec3::from(q.normal()).dot(Vec3::from(n)) > 0.5 {
+            if d.length_squared() > r * r {
+                continue;
+            }
+            if Vec3::from(q.normal()).dot(Vec3::from(n)) > 0.5 {
                 count += 1;
                 for c in 0..3 {
                     want[c] += q.power()[c] as f64;
                 }
+            } else {
+                other += 1;
             }
         }
         assert_eq!(found, count, "{what}: gather at {x:?} found {found} photons, brute force {count}");
+        assert_eq!(est.other, other, "{what}: gather at {x:?} saw {} photons of other orientations, brute force {other}", est.other);
         let scale = 1.0 / (std::f64::consts::PI * (r as f64).powi(2));
         for c in 0..3 {
             let w = want[c] * scale;
@@ -247,7 +254,7 @@ fn photon_map_irradiance_under_a_point_light_is_i_cos_over_d_squared() {
     for rt in runtimes() {
         let t = Tracer::new(rt, &s, None).unwrap();
         let (photons, passes) = if rt.is_native() { (1 << 20, 8) } else { (1 << 19, 4) };
-        let o = PhotonOptions { photons, passes, radius: Some(0.05), photon_direct: true, ..Default::default() };
+        let o = PhotonOptions { photons, passes, radius: Some(0.05), photon_direct: true, final_gather: FinalGather::Off, ..Default::default() };
         let mut map = PhotonMap::new(&t, Accel::BRUTE, None, s.surface_area(), o).unwrap();
         let (img, _) = pm::render(&mut map, &cam, &()).unwrap();
         let (mut sum, mut sq, mut n) = (0.0f64, 0.0f64, 0);
@@ -322,12 +329,22 @@ fn furnace_radiance_is_emission_over_one_minus_albedo() {
     for rt in runtimes() {
         let t = Tracer::new(rt, &s, None).unwrap();
         let (photons, passes) = if rt.is_native() { (1 << 19, 8) } else { (1 << 18, 4) };
-        let o = PhotonOptions { photons, passes, radius: Some(0.05), ..Default::default() };
+        let o = PhotonOptions { photons, passes, radius: Some(0.05), final_gather: FinalGather::Off, ..Default::default() };
         let mut map = PhotonMap::new(&t, Accel::BRUTE, None, s.surface_area(), o).unwrap();
         let (img, _) = pm::render(&mut map, &cam, &()).unwrap();
         let (mean, rms, n) = furnace_error(&img, &cam);
         eprintln!("{}: photon mapping, {n} pixels: mean {mean:.4} (want 2), rms deviation {rms:.4}", rt.name());
         assert!((mean / 2.0 - 1.0).abs() < 0.01, "{}: photon-mapped furnace mean {mean}", rt.name());
+        // Final gathering: direct light by shadow rays, one bounce, all light from the photons
+        // (direct ones included) at the second point.
+        for fg in [FinalGather::All, FinalGather::Edges] {
+            let o = PhotonOptions { photons, passes, radius: Some(0.05), final_gather: fg, ..Default::default() };
+            let mut map = PhotonMap::new(&t, Accel::BRUTE, None, s.surface_area(), o).unwrap();
+            let (img, _) = pm::render(&mut map, &cam, &()).unwrap();
+            let (mean, rms, n) = furnace_error(&img, &cam);
+            eprintln!("{}: final gathering {fg:?}, {n} pixels: mean {mean:.4} (want 2), rms deviation {rms:.4}", rt.name());
+            assert!((mean / 2.0 - 1.0).abs() < 0.01, "{}: final-gathered ({fg:?}) furnace mean {mean}", rt.name());
+        }
         let img = path::render(&t, Accel::BRUTE, &cam, &PathOptions::path(3, 64, if rt.is_native() { 512 } else { 256 }), &()).unwrap();
         let (mean, rms, n) = furnace_error(&img, &cam);
         eprintln!("{}: path tracing, {n} pixels: mean {mean:.4} (want 2), rms deviation {rms:.4}", rt.name());
@@ -403,15 +420,17 @@ fn native_and_gpu_trace_the_same_photons_and_render_the_same_image() {
         // Images: the same photons and eye paths; sums may differ in order only.
         let size = 48;
         let cam = s.camera.to_pod(size, size);
-        let render = |rt: &dyn Runtime| {
-            let t = Tracer::new(rt, &s, Some(&tr)).unwrap();
-            let o = PhotonOptions { photons: 1 << 16, passes: 2, ..Default::default() };
-            let mut map = PhotonMap::new(&t, accel, Some(&tr), s.surface_area(), o).unwrap();
-            pm::render(&mut map, &cam, &()).unwrap().0
-        };
-        let e = error(&render(g), &render(&NATIVE));
-        eprintln!("{spec}: GPU vs native image: relative RMSE {:.5} %", e * 100.0);
-        assert!(e < 0.002, "{spec}: GPU and native images differ by {:.3} %", e * 100.0);
+        for final_gather in [FinalGather::Off, FinalGather::Edges, FinalGather::All] {
+            let render = |rt: &dyn Runtime| {
+                let t = Tracer::new(rt, &s, Some(&tr)).unwrap();
+                let o = PhotonOptions { photons: 1 << 16, passes: 2, final_gather, ..Default::default() };
+                let mut map = PhotonMap::new(&t, accel, Some(&tr), s.surface_area(), o).unwrap();
+                pm::render(&mut map, &cam, &()).unwrap().0
+            };
+            let e = error(&render(g), &render(&NATIVE));
+            eprintln!("{spec}, final gather {final_gather:?}: GPU vs native image: relative RMSE {:.5} %", e * 100.0);
+            assert!(e < 0.002, "{spec}, final gather {final_gather:?}: GPU and native images differ by {:.3} %", e * 100.0);
+        }
     }
 }
 
@@ -446,6 +465,41 @@ fn whole_path_photon_kernel_traces_the_photons_of_the_pass_per_bounce_schedule()
             let sum = |v: &[([u32; 3], u32, u32)]| v.iter().map(|p| p.0.iter().map(|b| f32::from_bits(*b) as f64).sum::<f64>()).sum::<f64>();
             let (sa, sb) = (sum(a), sum(b));
             assert!((sa - sb).abs() <= 1e-5 * sa.abs(), "{}: {sa} vs {sb}", rt.name());
+        }
+    }
+}
+
+/// The final gather resumes eye paths from their gather points: in the whole-path kernel
+/// (`render::trace_path` with `RENDER_CONTINUE`) and in the per-bounce schedule
+/// (`continue_paths`, then a pass per bounce) alike — the same image, natively bit for bit.
+/// The glass sphere has a caustic map (gathered at the first point) and specular bounces on
+/// the way to the second.
+#[test]
+fn final_gather_renders_the_same_with_whole_paths_and_per_bounce_passes() {
+    let s = scene::load("cornell-glass").unwrap();
+    let tr = tree(&s);
+    let cam = s.camera.to_pod(24, 24);
+    for rt in runtimes() {
+        let t = Tracer::new(rt, &s, Some(&tr)).unwrap();
+        let render = |fused: bool, final_gather: FinalGather| {
+            let o = PhotonOptions { photons: 1 << 14, passes: 2, fused, final_gather, ..Default::default() };
+            let mut map = PhotonMap::new(&t, Accel::kd(Algorithm::ShortStack(3)), Some(&tr), s.surface_area(), o).unwrap();
+            pm::render(&mut map, &cam, &()).unwrap().0
+        };
+        let direct = render(true, FinalGather::Off);
+        for fg in [FinalGather::All, FinalGather::Edges] {
+            let (whole, split) = (render(true, fg), render(false, fg));
+            let e = error(&whole, &split);
+            eprintln!("{}: final gather {fg:?}, whole paths vs per-bounce passes: relative RMSE {:.6} %", rt.name(), e * 100.0);
+            if rt.is_native() {
+                assert!(whole.radiance == split.radiance, "{}: the two schedules render different images ({fg:?})", rt.name());
+            } else {
+                assert!(e < 0.002, "{}: the two schedules differ by {:.3} % ({fg:?})", rt.name(), e * 100.0);
+            }
+            // And it is a different estimate of the same image: not the direct visualisation.
+            let d = error(&whole, &direct);
+            assert!(d > 1e-4 && d < 0.5, "{}: final gather {fg:?} vs direct visualisation {d}", rt.name());
+            assert!(whole.hits == direct.hits, "{}: the final gather changed the primary hits", rt.name());
         }
     }
 }

@@ -373,6 +373,37 @@ pub struct CameraRays<'a> {
     pub paths: &'a Buffer<PathState>,
 }
 
+/// Paths resume from their gather points by one diffuse bounce, the final gather
+/// (`render::continue_paths`), for the per-bounce schedule.
+pub struct ContinuePaths<'a> {
+    /// The batch and the continuation's seed.
+    pub params: RenderParams,
+    /// Read and written: each path's gather point, replaced by its next ray.
+    pub rays: &'a Buffer<Ray>,
+    /// Read and written: each path's state.
+    pub paths: &'a Buffer<PathState>,
+}
+
+impl Kernel for ContinuePaths<'_> {
+    fn entry(&self) -> Cow<'static, str> {
+        "continue_paths".into()
+    }
+    fn params(&self) -> &[u8] {
+        bytemuck::bytes_of(&self.params)
+    }
+    fn bindings(&self) -> Vec<Bind<'_>> {
+        vec![write("rays", self.rays), write("paths", self.paths)]
+    }
+    fn threads(&self) -> u32 {
+        self.params.count
+    }
+    fn run(&self, t: u32) {
+        // SAFETY: called by the native runtime during the dispatch of this pass, which holds
+        // its bindings; item t reads and writes only its own elements.
+        unsafe { render::continue_paths(t, &self.params, &mut self.rays.host_store(), &mut self.paths.host_store()) }
+    }
+}
+
 impl Kernel for CameraRays<'_> {
     fn entry(&self) -> Cow<'static, str> {
         "camera_rays".into()
@@ -1112,11 +1143,12 @@ pub struct TracePaths<'a> {
     pub materials: &'a Buffer<Material>,
     /// The lights to sample (`params.light_count` of them).
     pub lights: &'a Buffer<Light>,
-    /// Written: each path's last ray (its gather point, if it ended at one).
+    /// Written: each path's last ray (its gather point, if it ended at one); with
+    /// `RENDER_CONTINUE` also read first (the gather point it resumes from).
     pub rays: &'a Buffer<Ray>,
-    /// Written: each path's final state.
+    /// Written: each path's final state (read first with `RENDER_CONTINUE`).
     pub paths: &'a Buffer<PathState>,
-    /// Written: each path's closest hit at bounce 0.
+    /// Written: each path's closest hit at bounce 0 (not with `RENDER_CONTINUE`).
     pub primary_hits: &'a Buffer<Hit>,
     entry: String,
     cpu: PathRun<'a>,

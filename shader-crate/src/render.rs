@@ -20,6 +20,17 @@ pub fn camera_rays(
 }
 
 #[spirv(compute(threads(64)))]
+pub fn continue_paths(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(num_workgroups)] groups: UVec3,
+    #[spirv(push_constant)] params: &RenderParams,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] rays: &mut [Ray],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] paths: &mut [PathState],
+) {
+    render::continue_paths(crate::item(id, groups), params, rays, paths);
+}
+
+#[spirv(compute(threads(64)))]
 pub fn path_step(
     #[spirv(global_invocation_id)] id: UVec3,
     #[spirv(num_workgroups)] groups: UVec3,

@@ -28,7 +28,7 @@ use crate::math::{
 };
 use crate::pod::{
     Hit, IndexParams, LeafCells, Light, Material, PathState, Photon, PhotonParams, PhotonPath, Triangle, FILTER_CONE,
-    FILTER_EPANECHNIKOV, LIGHT_POINT, LIGHT_SPOT, MAT_MIRROR, PATH_GATHER, PHOTON_ACTIVE, PHOTON_SPECULAR_ONLY,
+    FILTER_EPANECHNIKOV, GATHER_EDGES, GATHER_SKIP_DIRECT, LIGHT_POINT, LIGHT_SPOT, MAT_MIRROR, PATH_GATHER, PHOTON_ACTIVE, PHOTON_SPECULAR_ONLY,
     PHOTON_STORE_DIRECT,
 };
 use crate::ray::Ray;
@@ -39,6 +39,8 @@ use crate::shade::{self, choose_light, is_specular, offset, specular_bounce, sur
 pub const GROUP: u32 = 32;
 /// Bit of `Photon::packed`: a caustic photon.
 pub const CAUSTIC_BIT: u32 = 1 << 30;
+/// Bit of `Photon::packed`: a photon stored at its first hit, straight from a light.
+pub const DIRECT_BIT: u32 = 1 << 31;
 /// The cell of an empty photon slot (left out by the counting sort).
 pub const NO_CELL: u32 = u32::MAX;
 /// Bound on the kd-tree walk of the index (the builder's depth limit is 48).
@@ -116,9 +118,11 @@ impl Photon {
     /// A record of a photon of power `power` at `p` on a surface whose normal on the arriving
     /// side is `n`, arriving along unit `dir` (pointing into the surface).
     #[inline(always)]
-    pub fn new(p: [f32; 3], power: [f32; 3], n: [f32; 3], dir: [f32; 3], caustic: bool, dither: f32) -> Photon {
+    /// `direct`: stored at its first hit.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(p: [f32; 3], power: [f32; 3], n: [f32; 3], dir: [f32; 3], caustic: bool, direct: bool, dither: f32) -> Photon {
         let from = scale3(dir, -1.0);
-        let packed = encode_oct(n, 8) | (encode_oct(from, 7) << 16) | if caustic { CAUSTIC_BIT } else { 0 };
+        let packed = encode_oct(n, 8) | (encode_oct(from, 7) << 16) | if caustic { CAUSTIC_BIT } else { 0 } | if direct { DIRECT_BIT } else { 0 };
         Photon { position: p, power: encode_rgb9e5(power, dither), packed }
     }
     /// The photon's power (RGB), decoded from RGB9E5.
@@ -140,6 +144,11 @@ impl Photon {
     #[inline(always)]
     pub fn is_caustic(&self) -> bool {
         self.packed & CAUSTIC_BIT != 0
+    }
+    /// Whether it was stored straight from a light (`DIRECT_BIT`).
+    #[inline(always)]
+    pub fn is_direct(&self) -> bool {
+        self.packed & DIRECT_BIT != 0
     }
 }
 
@@ -260,7 +269,7 @@ pub fn bounce_step<O, C>(
                 let caustic = p.caustic_map != 0 && bounce > 0 && path.flags & PHOTON_SPECULAR_ONLY != 0;
                 let slot = counter.atomic_add(0, 1);
                 if slot < p.capacity {
-                    photons.store(slot as usize, Photon::new(pt, path.power, n, normalize3(ray.dir), caustic, rng.next_f32()));
+                    photons.store(slot as usize, Photon::new(pt, path.power, n, normalize3(ray.dir), caustic, bounce == 0, rng.next_f32()));
                 }
             }
             let a = mat.diffuse;
@@ -617,14 +626,18 @@ pub fn permute<O: Store<Photon> + ?Sized>(i: u32, p: &IndexParams, photons: &[Ph
 // ---------------------------------------------------------------------------------------------
 // Gather
 
-/// Sums the photons of visited cells within `r2` of `x` on the side `n`.
+/// Sums the photons of visited cells within `r2` of `x` on the side `n` (leaving out direct
+/// ones when `skip` holds `DIRECT_BIT`), and counts those within `r2` on surfaces of other
+/// orientations.
 struct Sum {
     x: [f32; 3],
     n: [f32; 3],
     r2: f32,
     filter: u32,
+    skip: u32,
     sum: [f32; 3],
     found: u32,
+    other: u32,
 }
 
 impl CellVisitor for Sum {
@@ -636,33 +649,53 @@ impl CellVisitor for Sum {
             let ph = &photons[j as usize];
             let d = sub3(ph.position, self.x);
             let d2 = dot3(d, d);
-            if d2 <= self.r2 && dot3(ph.normal(), self.n) > 0.5 {
-                let w = if self.filter == FILTER_CONE {
-                    3.0 * (1.0 - crate::math::sqrt(d2 / self.r2))
-                } else if self.filter == FILTER_EPANECHNIKOV {
-                    2.0 * (1.0 - d2 / self.r2)
-                } else {
-                    1.0
-                };
-                self.sum = add3(self.sum, scale3(ph.power(), w));
-                self.found += 1;
+            if d2 <= self.r2 {
+                if dot3(ph.normal(), self.n) <= 0.5 {
+                    self.other += 1;
+                } else if ph.packed & self.skip == 0 {
+                    let w = if self.filter == FILTER_CONE {
+                        3.0 * (1.0 - crate::math::sqrt(d2 / self.r2))
+                    } else if self.filter == FILTER_EPANECHNIKOV {
+                        2.0 * (1.0 - d2 / self.r2)
+                    } else {
+                        1.0
+                    };
+                    self.sum = add3(self.sum, scale3(ph.power(), w));
+                    self.found += 1;
+                }
             }
             j += 1;
         }
     }
 }
 
-/// Irradiance at `x` (normal `n` on the viewing side) from one map: Σ w·Φ / (π r²).
-#[inline(always)]
-pub fn irradiance<I: PhotonIndex>(index: &I, p: &IndexParams, photons: &[Photon], offsets: &[u32], x: [f32; 3], n: [f32; 3], map: u32) -> ([f32; 3], u32) {
-    let r = p.radius[map as usize];
-    let mut s = Sum { x, n, r2: r * r, filter: p.filter, sum: [0.0; 3], found: 0 };
-    index.visit(x, r, map, photons, offsets, &mut s);
-    (scale3(s.sum, 1.0 / (core::f32::consts::PI * r * r)), s.found)
+/// A density estimate at a point (`irradiance`).
+#[derive(Copy, Clone, Debug, Default, PartialEq)]
+pub struct Estimate {
+    /// Irradiance, Σ w·Φ / (π r²).
+    pub irradiance: [f32; 3],
+    /// Photons that counted.
+    pub found: u32,
+    /// Photons within the radius on surfaces of other orientations.
+    pub other: u32,
 }
 
-/// Path `i`: if it ended at a gather point, adds the reflected radiance its photons give
-/// (throughput already holds albedo/π) to its radiance (the film then adds the paths up).
+/// Irradiance at `x` (normal `n` on the viewing side) from one map: Σ w·Φ / (π r²) over the
+/// photons within the map's radius on the same side, direct ones left out under
+/// `GATHER_SKIP_DIRECT`.
+#[inline(always)]
+pub fn irradiance<I: PhotonIndex>(index: &I, p: &IndexParams, photons: &[Photon], offsets: &[u32], x: [f32; 3], n: [f32; 3], map: u32) -> Estimate {
+    let r = p.radius[map as usize];
+    let skip = if p.gather_flags & GATHER_SKIP_DIRECT != 0 { DIRECT_BIT } else { 0 };
+    let mut s = Sum { x, n, r2: r * r, filter: p.filter, skip, sum: [0.0; 3], found: 0, other: 0 };
+    index.visit(x, r, map, photons, offsets, &mut s);
+    Estimate { irradiance: scale3(s.sum, 1.0 / (core::f32::consts::PI * r * r)), found: s.found, other: s.other }
+}
+
+/// Path `i`: if it ended at a gather point, adds the reflected radiance the photons of maps
+/// `p.first_map..p.maps` give (throughput already holds albedo/π) to its radiance (the film
+/// then adds the paths up). Under `GATHER_EDGES` a point near an edge takes the caustic map
+/// only and stays a gather point (for the final gather); every other point stops being one.
 #[inline(always)]
 pub fn gather<I: PhotonIndex, P: Store<PathState> + ?Sized>(
     i: u32,
@@ -680,11 +713,23 @@ pub fn gather<I: PhotonIndex, P: Store<PathState> + ?Sized>(
     let mut path = paths.load(k);
     if path.flags & PATH_GATHER != 0 {
         let g = rays[k];
-        let mut e = irradiance(index, p, photons, offsets, g.origin, g.dir, 0).0;
-        if p.maps > 1 {
-            e = add3(e, irradiance(index, p, photons, offsets, g.origin, g.dir, 1).0);
+        let edges = p.gather_flags & GATHER_EDGES != 0;
+        let mut e = [0.0; 3];
+        let mut near_edge = false;
+        let mut map = p.first_map;
+        while map < p.maps {
+            let m = irradiance(index, p, photons, offsets, g.origin, g.dir, map);
+            if edges && map == 0 && m.other > 0 {
+                near_edge = true;
+            } else {
+                e = add3(e, m.irradiance);
+            }
+            map += 1;
         }
         path.radiance = add3(path.radiance, mul3(path.throughput, e));
+        if edges && !near_edge {
+            path.flags &= !PATH_GATHER;
+        }
         paths.store(k, path);
     }
 }

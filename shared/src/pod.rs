@@ -177,6 +177,10 @@ pub const RENDER_JITTER: u32 = 1;
 pub const RENDER_GATHER: u32 = 2;
 /// With `RENDER_GATHER`: no shadow ray; the photon map gives direct light too.
 pub const RENDER_PHOTON_DIRECT: u32 = 4;
+/// The paths resume from their gather points (`render::resume`: one cosine-weighted diffuse
+/// bounce, the final gather) instead of leaving the camera; emission they hit does not count
+/// (shadow rays and the caustic map at the first gather point have counted it).
+pub const RENDER_CONTINUE: u32 = 8;
 
 /// Push constants of the renderer's kernels (camera rays, path steps, accumulation).
 #[repr(C)]
@@ -373,8 +377,8 @@ pub struct PhotonPath {
 
 /// A stored photon, 20 bytes: position, power as shared-exponent RGB (RGB9E5), and `packed` =
 /// the surface normal on the side the photon arrived from (octahedral, 2 × 8 bits), the
-/// direction it came from (octahedral, 2 × 7 bits, bits 16..30) and whether it is a caustic
-/// photon (bit 30).
+/// direction it came from (octahedral, 2 × 7 bits, bits 16..30), whether it is a caustic
+/// photon (bit 30) and whether it came straight from a light (bit 31).
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct Photon {
@@ -382,7 +386,7 @@ pub struct Photon {
     pub position: [f32; 3],
     /// Power (RGB) as RGB9E5 (`photon::encode_rgb9e5`).
     pub power: u32,
-    /// Normal, incoming direction and caustic bit (layout in the struct's description).
+    /// Normal, incoming direction, caustic and direct bits (layout in the struct's description).
     pub packed: u32,
 }
 
@@ -418,13 +422,24 @@ pub struct IndexParams {
     pub grid: u32,
     /// The scene box (the grid's origin, the kd-tree's root cell).
     pub bounds_min: [f32; 3],
-    /// Padding: aligns `bounds_max` to 16 bytes.
-    pub _pad0: u32,
+    /// The first map a gather sums (maps `first_map..maps`): 0 for all, 1 for the caustic map
+    /// alone.
+    pub first_map: u32,
     /// Maximum corner of the scene box.
     pub bounds_max: [f32; 3],
-    /// Padding to a 16-byte multiple.
-    pub _pad1: u32,
+    /// `GATHER_*` bits.
+    pub gather_flags: u32,
 }
+
+/// `IndexParams::gather_flags`: photons that came straight from a light do not count (shadow
+/// rays have counted their light).
+pub const GATHER_SKIP_DIRECT: u32 = 1;
+/// `IndexParams::gather_flags`: final gathering near edges only. A gather point whose disc
+/// holds a photon of the global map on a surface of another orientation (a corner or an edge
+/// within the radius, where the disc reaches past its surface and the estimate is biased) takes
+/// only the caustic map and stays a gather point, to be resumed by the final gather; any other
+/// takes every map and ends.
+pub const GATHER_EDGES: u32 = 2;
 
 /// A kd-tree leaf's cells in the photon index (`INDEX_KD`), one per node (interior nodes'
 /// have `dims` 0): the leaf's box, its first cell and its subdivision (`dims` = nx | ny << 10 |

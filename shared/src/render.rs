@@ -6,7 +6,11 @@ use crate::camera;
 use crate::query::{Answer, AnyHit, Closest, Query};
 use crate::trace::Method;
 use crate::kernel::Store;
-use crate::pod::{Hit, ItemParams, Light, Material, PathState, RenderParams, ShadeTerms, Triangle, RENDER_JITTER};
+use crate::math::{cosine_direction, scale3};
+use crate::pod::{
+    Hit, ItemParams, Light, Material, PathState, RenderParams, ShadeTerms, Triangle, PATH_ACTIVE, PATH_DIFFUSE_SHIFT, PATH_GATHER,
+    RENDER_CONTINUE, RENDER_JITTER,
+};
 use crate::ray::Ray;
 use crate::rng::Rng;
 use crate::shade;
@@ -35,6 +39,39 @@ pub fn camera_sample(i: u32, p: &RenderParams) -> (Ray, PathState) {
         camera::primary_ray(&p.camera, pixel)
     };
     (ray, PathState::start(stream))
+}
+
+/// A path at a gather point `point` (`shade::gather_point`) continued by one cosine-weighted
+/// diffuse bounce from it: the final gather. Its throughput (which holds albedo/π there) times
+/// π, the cosine and the pdf cos/π cancelling; the radiance it has gathered is kept. A path
+/// that did not end at a gather point stays ended. Random numbers come from the stream of
+/// (`p.seed`, pixel).
+#[inline(always)]
+pub fn resume(p: &RenderParams, point: &Ray, path: &PathState) -> (Ray, PathState) {
+    if path.flags & PATH_GATHER == 0 {
+        return (shade::NO_RAY, PathState { flags: 0, ..*path });
+    }
+    let mut rng = Rng::new(p.seed ^ 0x3C6E_F372, path.pixel);
+    let n = point.dir;
+    let d = cosine_direction(n, rng.next_f32(), rng.next_f32());
+    let next = PathState {
+        throughput: scale3(path.throughput, core::f32::consts::PI),
+        flags: PATH_ACTIVE | (1 << PATH_DIFFUSE_SHIFT),
+        radiance: path.radiance,
+        pixel: path.pixel,
+    };
+    (Ray::new(shade::offset(point.origin, n), d, 0.0, f32::INFINITY), next)
+}
+
+/// Path `i` resumes from its gather point (`resume`), for the per-bounce schedule.
+#[inline(always)]
+pub fn continue_paths<R: Store<Ray> + ?Sized, P: Store<PathState> + ?Sized>(i: u32, p: &RenderParams, rays: &mut R, paths: &mut P) {
+    if i < p.count {
+        let k = i as usize;
+        let (ray, path) = resume(p, &rays.load(k), &paths.load(k));
+        rays.store(k, ray);
+        paths.store(k, path);
+    }
 }
 
 /// One bounce of path `i`: reflect at a mirror (updating `rays[i]` in place) or shade.
@@ -117,7 +154,8 @@ pub fn rng_fill<O: Store<[u32; 4]> + ?Sized>(i: u32, p: &ItemParams, out: &mut O
     }
 }
 
-/// Path `i` of the batch from the camera to its end in one item: `camera_rays`, then per
+/// Path `i` of the batch from the camera (or, with `RENDER_CONTINUE`, from its gather point by
+/// `resume`, leaving `primary_hits` alone) to its end in one item: `camera_rays`, then per
 /// bounce (up to `p.max_bounces`) a closest-hit query by `M`, `shade::path_step`, the shadow
 /// ray's any-hit query and `shade::accumulate` — the same paths as the schedule of separate
 /// passes, without a dispatch per bounce. Leaves the path (and its gather point, if any, in
@@ -145,13 +183,14 @@ pub fn trace_path<M: Method, R, P, H>(
     let k = i as usize;
     // The camera sample in registers: writing it to `rays`/`paths` and reading it back in the
     // same invocation read zeros on NVIDIA's driver 580 (lavapipe read the values written).
-    let (mut ray, mut path) = camera_sample(i, p);
+    let resuming = p.flags & RENDER_CONTINUE != 0;
+    let (mut ray, mut path) = if resuming { resume(p, &rays.load(k), &paths.load(k)) } else { camera_sample(i, p) };
     let mut bounce = 0;
     while bounce <= p.max_bounces && path.is_active() {
         let mut q = Closest::new(&ray);
         M::find(accel, &ray, &mut q);
         let hit = q.answer();
-        if bounce == 0 {
+        if bounce == 0 && !resuming {
             primary_hits.store(k, hit);
         }
         let (shadow, terms) = shade::path_step(p, bounce, &mut ray, &hit, &mut path, tris, materials, lights);

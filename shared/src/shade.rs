@@ -10,15 +10,18 @@
 //! Then the path ends (direct lighting, `diffuse_bounces` 0), continues in a cosine-weighted
 //! direction with Russian roulette by albedo (path tracing), or ends as a gather point for the
 //! photon map (`RENDER_GATHER`). Emission a path hits counts after the camera or a specular
-//! vertex only; after a diffuse vertex the shadow ray has counted it. The split lets each query
-//! run as its own kernel.
+//! vertex only; after a diffuse vertex the shadow ray has counted it. A final gather resumes a
+//! path from its gather point (`render::resume`, `RENDER_CONTINUE`) to a second one, where the
+//! photon map gives all the light (`RENDER_PHOTON_DIRECT`); emission it meets counts nowhere
+//! on the way (direct light and caustics were counted at the first point). The split lets each
+//! query run as its own kernel.
 //!
 //! Glass is colourless and the radiance scaling by η² at refraction is left out (it cancels
 //! for paths that enter and leave a closed object).
 use crate::math::{add3, cosine_direction, cross3, dot3, length3, mul3, normalize3, scale3, sqrt, sub3};
 use crate::pod::{
     Hit, Light, Material, PathState, RenderParams, ShadeTerms, Triangle, LIGHT_POINT, LIGHT_SPOT, MAT_GLASS, MAT_MIRROR,
-    PATH_ACTIVE, PATH_DIFFUSE_SHIFT, PATH_GATHER, PATH_SPECULAR, RENDER_GATHER, RENDER_PHOTON_DIRECT,
+    PATH_ACTIVE, PATH_DIFFUSE_SHIFT, PATH_GATHER, PATH_SPECULAR, RENDER_CONTINUE, RENDER_GATHER, RENDER_PHOTON_DIRECT,
 };
 use crate::ray::Ray;
 use crate::rng::Rng;
@@ -219,8 +222,9 @@ pub fn path_step(
     }
     let tri = &tris[hit.prim as usize];
     let mat = &materials[tri.material as usize];
-    // Emitters emit from their front side only.
-    if path.flags & PATH_SPECULAR != 0 && dot3(geometric_normal(tri), ray.dir) < 0.0 {
+    // Emitters emit from their front side only; a final-gather path (`RENDER_CONTINUE`) left
+    // a diffuse point whose direct light and caustics are counted already.
+    if path.flags & PATH_SPECULAR != 0 && p.flags & RENDER_CONTINUE == 0 && dot3(geometric_normal(tri), ray.dir) < 0.0 {
         terms.base = mul3(path.throughput, mat.emission);
     }
     // Each bounce draws from its own random stream.

@@ -10,13 +10,13 @@
 //! so the GPU renders one while the host reads the last.
 use super::{Progress, RenderOutput};
 use crate::accel::Accel;
-use crate::kernels::{Accumulate, CameraRays, Film, PathStep, TracePaths};
+use crate::kernels::{Accumulate, CameraRays, ContinuePaths, Film, PathStep, TracePaths};
 use crate::runtime::{cast, Buffer, Kernel};
 use crate::tracer::{LeafLists, Tracer};
 use crate::error::{bail, Result};
 use kdray_shared::query::{AnyHit, Closest};
 use kdray_shared::rng::pcg_hash;
-use kdray_shared::{camera, Camera, Hit, PathState, Ray, RenderParams, ShadeTerms, RENDER_JITTER};
+use kdray_shared::{camera, Camera, Hit, PathState, Ray, RenderParams, ShadeTerms, RENDER_CONTINUE, RENDER_JITTER};
 
 /// What the eye paths do.
 #[derive(Copy, Clone, Debug, PartialEq)]
@@ -119,13 +119,20 @@ pub fn with_samples(p: RenderParams, samples: u32) -> RenderParams {
 }
 
 /// Every pass of one sample group of one batch, in order, up to the paths' last bounce (the
-/// caller adds the film or the gather). Bounce 0 writes its hits into `primary_hits`.
+/// caller adds the film or the gather). Bounce 0 writes its hits into `primary_hits`. With
+/// `RENDER_CONTINUE` the paths resume from their gather points (`ContinuePaths`) instead of
+/// leaving the camera, and `primary_hits` stays as it is.
 pub fn path_passes<'a>(t: &'a Tracer, accel: Accel, p: &RenderParams, fb: &'a FrameBuffers) -> Result<Vec<Box<dyn Kernel + 'a>>> {
     let n = p.count as usize;
-    let mut v: Vec<Box<dyn Kernel + 'a>> = vec![Box::new(CameraRays { params: *p, rays: &fb.rays, paths: &fb.paths })];
+    let resuming = p.flags & RENDER_CONTINUE != 0;
+    let mut v: Vec<Box<dyn Kernel + 'a>> = if resuming {
+        vec![Box::new(ContinuePaths { params: *p, rays: &fb.rays, paths: &fb.paths })]
+    } else {
+        vec![Box::new(CameraRays { params: *p, rays: &fb.rays, paths: &fb.paths })]
+    };
     for bounce in 0..=p.max_bounces {
         let params = RenderParams { bounce, ..*p };
-        let hits = if bounce == 0 { &fb.primary_hits } else { &fb.hits };
+        let hits = if bounce == 0 && !resuming { &fb.primary_hits } else { &fb.hits };
         v.extend(t.query_passes::<Closest>(accel, n, &fb.rays, hits, fb.lists.as_ref())?);
         v.push(Box::new(PathStep {
             params,

@@ -9,7 +9,9 @@
 //! 3. **eye** — one jittered sample per pixel through specular bounces to a diffuse gather
 //!    point, direct light by a shadow ray (or from the photon map);
 //! 4. **gather** — the photons within the pass's radius at each gather point, added to the
-//!    film.
+//!    film. With final gathering (`FinalGather`) the first gather point takes the caustic map
+//!    only (everywhere, or near edges only); the paths then resume by one diffuse bounce to a
+//!    second point, where every photon (direct ones included) gives the light.
 //!
 //! The radius shrinks from pass to pass, r²ᵢ₊₁ = r²ᵢ (i + α)/(i + 1), so the average of the
 //! passes converges to the right answer; memory does not grow with the number of passes. The
@@ -28,8 +30,8 @@ use kdray_shared::kdtree::KdNode;
 use kdray_shared::query::Closest;
 use kdray_shared::rng::pcg_hash;
 use kdray_shared::{
-    Camera, Hit, IndexParams, LeafCells, Photon, PhotonParams, PhotonPath, Ray, RenderParams, FILTER_CONSTANT, INDEX_GRID, INDEX_KD,
-    PHOTON_STORE_DIRECT, RENDER_GATHER, RENDER_JITTER, RENDER_PHOTON_DIRECT,
+    Camera, Hit, IndexParams, LeafCells, Photon, PhotonParams, PhotonPath, Ray, RenderParams, FILTER_CONSTANT, GATHER_EDGES, GATHER_SKIP_DIRECT, INDEX_GRID, INDEX_KD,
+    PHOTON_STORE_DIRECT, RENDER_CONTINUE, RENDER_GATHER, RENDER_JITTER, RENDER_PHOTON_DIRECT,
 };
 use std::time::Instant;
 
@@ -51,6 +53,26 @@ pub enum IndexKind {
 /// 2.69 s against 2.85 s, at the same error; smaller spreads gain a little more speed and
 /// lose accuracy in the glass-sphere box (caustic photons bunch up).
 pub const COHERENT_SPREAD: f32 = 0.1;
+
+/// Where the eye paths' first diffuse points take their indirect light from.
+///
+/// A final gather takes, at the first diffuse point, direct light by a shadow ray and caustics
+/// from the caustic map, then one cosine-weighted bounce to a second diffuse point, where the
+/// photon map (every photon, direct ones included) gives all the light: the density
+/// estimate's bias, worst where the gather disc reaches past its surface at corners and edges,
+/// is averaged over a hemisphere instead of seen directly, at the price of the bounce's noise
+/// and an incoherent gather.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum FinalGather {
+    /// The photon map read at the first diffuse point (direct visualisation, the paper's).
+    Off,
+    /// A final gather only where the first point's disc holds photons on surfaces of other
+    /// orientations (a corner or an edge within the radius: `GATHER_EDGES`); the photon map
+    /// read directly everywhere else.
+    Edges,
+    /// A final gather at every first diffuse point.
+    All,
+}
 
 /// What a photon-mapped render does.
 #[derive(Clone, Debug)]
@@ -78,6 +100,8 @@ pub struct PhotonOptions {
     /// Everything from the photon map (the paper's way); otherwise direct light by shadow
     /// rays and only indirect light from the photon map.
     pub photon_direct: bool,
+    /// Final gathering, everywhere, near edges only, or not at all (`FinalGather`).
+    pub final_gather: FinalGather,
     /// `FILTER_*` of the gather.
     pub filter: u32,
     /// Photon bounces traced.
@@ -105,6 +129,7 @@ impl Default for PhotonOptions {
             grid_window: 3,
             spread: COHERENT_SPREAD,
             photon_direct: false,
+            final_gather: FinalGather::Edges,
             filter: FILTER_CONSTANT,
             photon_bounces: 16,
             fused: true,
@@ -229,6 +254,9 @@ impl<'t> PhotonMap<'t> {
         if !(o.alpha > 0.0 && o.alpha <= 1.0) {
             bail!(InvalidInput: "the radius reduction alpha must be in (0, 1], got {}", o.alpha);
         }
+        if o.final_gather != FinalGather::Off && o.photon_direct {
+            bail!(InvalidInput: "final gathering takes direct light from shadow rays: it cannot be combined with direct light from photons");
+        }
         if !(o.grid_window == 2 || o.grid_window == 3) {
             bail!(InvalidInput: "the photon grid's window must be 2 or 3 cells, got {}", o.grid_window);
         }
@@ -325,7 +353,7 @@ impl<'t> PhotonMap<'t> {
             light_count: self.t.light_count,
             bounce: 0,
             max_bounces: self.o.photon_bounces,
-            flags: if self.o.photon_direct { PHOTON_STORE_DIRECT } else { 0 },
+            flags: if self.o.photon_direct || self.o.final_gather != FinalGather::Off { PHOTON_STORE_DIRECT } else { 0 },
             capacity: self.capacity,
             spread: self.o.spread,
             caustic_map: (self.maps > 1) as u32,
@@ -455,10 +483,26 @@ impl<'t> PhotonMap<'t> {
         (self.cells, self.capacity)
     }
 
-    /// The gather pass of pass `pass` over `count` eye paths.
+    /// The gather pass of pass `pass` over `count` eye paths, every map.
     pub fn gather<'a>(&'a self, pass: u32, count: u32, fb: &'a FrameBuffers) -> Gather<'a> {
+        self.gather_maps(pass, count, fb, 0)
+    }
+
+    /// The gather pass of pass `pass` over `count` eye paths, maps `first_map..` (1: the
+    /// caustic map alone).
+    pub fn gather_maps<'a>(&'a self, pass: u32, count: u32, fb: &'a FrameBuffers, first_map: u32) -> Gather<'a> {
+        self.gather_with(IndexParams { first_map, ..self.index_params(pass, count) }, fb)
+    }
+
+    /// The first gather of `FinalGather::Edges`: every map, direct photons left out, the points
+    /// near edges kept for the final gather (`GATHER_EDGES`).
+    pub fn gather_edges<'a>(&'a self, pass: u32, count: u32, fb: &'a FrameBuffers) -> Gather<'a> {
+        self.gather_with(IndexParams { gather_flags: GATHER_EDGES | GATHER_SKIP_DIRECT, ..self.index_params(pass, count) }, fb)
+    }
+
+    fn gather_with<'a>(&'a self, params: IndexParams, fb: &'a FrameBuffers) -> Gather<'a> {
         Gather {
-            params: self.index_params(pass, count),
+            params,
             index: self.index_binds(),
             rays: &fb.rays,
             photons: &self.sorted,
@@ -555,6 +599,34 @@ pub fn eye_params(t: &Tracer, cam: &Camera, o: &PhotonOptions, first: usize, cou
     path::with_samples(p, o.eye_samples)
 }
 
+/// The final gather's parameters for the eye paths of `eye` (`eye_params`): resume from the
+/// gather points, their own random streams, all light from the photon map at the next
+/// diffuse point.
+pub fn final_gather_params(eye: &RenderParams) -> RenderParams {
+    RenderParams { seed: pcg_hash(eye.seed ^ 0xF17A_16A7), flags: RENDER_GATHER | RENDER_PHOTON_DIRECT | RENDER_CONTINUE, ..*eye }
+}
+
+/// The eye passes and gathers of pass `pass` for the paths of `p` (`eye_params`), up to the
+/// film: eye paths to their first diffuse points and the gather there; with final gathering,
+/// the caustic map at the first point (near edges only: every map elsewhere), the paths
+/// resumed to a second point, and every map there.
+fn record_eye<'a>(c: &mut crate::runtime::Commands, map: &'a PhotonMap, p: &RenderParams, pass: u32, fb: &'a FrameBuffers) -> Result<()> {
+    let (t, rt) = (map.t, map.t.rt);
+    for k in path::eye_passes(t, map.accel, p, fb, map.o.fused)? {
+        rt.dispatch(c, k.as_ref())?;
+    }
+    match map.o.final_gather {
+        FinalGather::Off => return rt.dispatch(c, &map.gather(pass, p.count, fb) as &dyn Kernel),
+        FinalGather::Edges => rt.dispatch(c, &map.gather_edges(pass, p.count, fb) as &dyn Kernel)?,
+        FinalGather::All if map.maps > 1 => rt.dispatch(c, &map.gather_maps(pass, p.count, fb, 1) as &dyn Kernel)?,
+        FinalGather::All => {}
+    }
+    for k in path::eye_passes(t, map.accel, &final_gather_params(p), fb, map.o.fused)? {
+        rt.dispatch(c, k.as_ref())?;
+    }
+    rt.dispatch(c, &map.gather(pass, p.count, fb) as &dyn Kernel)
+}
+
 /// Renders `cam`'s image by progressive photon mapping; `progress` counts passes.
 pub fn render(map: &mut PhotonMap, cam: &Camera, progress: &dyn Progress) -> Result<(RenderOutput, PhotonStats)> {
     let t = map.t;
@@ -573,10 +645,7 @@ pub fn render(map: &mut PhotonMap, cam: &Camera, progress: &dyn Progress) -> Res
         let mut c = rt.begin();
         for (&(first, count), fb) in batches.iter().zip(&fbs) {
             let p = eye_params(t, cam, &map.o, first, count, pass);
-            for k in path::eye_passes(t, accel, &p, fb, map.o.fused)? {
-                rt.dispatch(&mut c, k.as_ref())?;
-            }
-            rt.dispatch(&mut c, &map.gather(pass, p.count, fb) as &dyn Kernel)?;
+            record_eye(&mut c, map, &p, pass, fb)?;
             rt.dispatch(&mut c, &Film { params: p, paths: &fb.paths, radiance: &fb.radiance })?;
         }
         rt.submit(c)?;

@@ -3,7 +3,7 @@ use kdray::accel::Accel;
 use kdray::gpu::{self, Gpu};
 use kdray::image_out::{compare, write_png};
 use kdray::integrator::path::{self, PathOptions};
-use kdray::integrator::photon::{self as pm, IndexKind, PhotonMap, PhotonOptions};
+use kdray::integrator::photon::{self as pm, FinalGather, IndexKind, PhotonMap, PhotonOptions};
 use kdray::kdtree::{self, BuildOptions, KdTreeData};
 use kdray::runtime::cpu::NATIVE;
 use kdray::{scene, Runtime, Tracer};
@@ -42,6 +42,13 @@ pub enum IndexArg {
     Grid,
     /// The geometry kd-tree's leaves subdivided to about 2r (Frolov & Ignatenko).
     Kd,
+}
+
+#[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
+pub enum FinalGatherArg {
+    Off,
+    Edges,
+    All,
 }
 
 #[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
@@ -197,6 +204,14 @@ pub enum Command {
         /// Direct light from the photon map too (the paper's way), not by shadow rays.
         #[arg(long)]
         photon_direct: bool,
+        /// Final gathering (photon): one diffuse bounce from an eye path's first diffuse point,
+        /// the photon map read at the second (direct light by shadow rays and caustics from the
+        /// caustic map at the first) — `edges`: only where the first point is within the
+        /// radius of a corner or edge (photons of other orientations in its disc), `all`:
+        /// everywhere, `off`: the photon map read at the first point (direct visualisation).
+        /// Default: edges, or off with `--photon-direct` (the paper's way).
+        #[arg(long, value_enum)]
+        final_gather: Option<FinalGatherArg>,
         /// Gather kernel (photon).
         #[arg(long, value_enum, default_value = "constant")]
         filter: FilterArg,
@@ -416,6 +431,7 @@ pub fn run(cli: Cli) -> Result<()> {
             photon_index,
             emission,
             photon_direct,
+            final_gather,
             filter,
             grid_window,
             split_passes,
@@ -522,6 +538,13 @@ pub fn run(cli: Cli) -> Result<()> {
                             index: if photon_index == IndexArg::Kd { IndexKind::Kd } else { IndexKind::Grid },
                             spread,
                             photon_direct,
+                            final_gather: match final_gather {
+                                Some(FinalGatherArg::Off) => FinalGather::Off,
+                                Some(FinalGatherArg::Edges) => FinalGather::Edges,
+                                Some(FinalGatherArg::All) => FinalGather::All,
+                                None if photon_direct => FinalGather::Off,
+                                None => FinalGather::Edges,
+                            },
                             filter: match filter {
                                 FilterArg::Constant => kdray_shared::FILTER_CONSTANT,
                                 FilterArg::Cone => kdray_shared::FILTER_CONE,

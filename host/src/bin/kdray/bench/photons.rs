@@ -6,12 +6,13 @@
 //! paths, the per-bounce passes, and the whole-path kernel without lights, stopped at the
 //! first hit and storing nothing: where its time goes), the photon index's build time (hashed
 //! grid and kd leaves), and the eye pass and the gather at the benchmark's resolution (grid of
-//! cells r and of 2r, kd leaves). Times are wall time per pass of several passes recorded into
+//! cells r and of 2r, kd leaves), and a final gather's eye pass (eye paths, resumed, gathered
+//! with the direct photons in the map: BVH, grid). Times are wall time per pass of several passes recorded into
 //! one submission (launch overhead amortised, every clear and dispatch included).
 //!
 //! Table 2 (`photons-error`): per scene at 512² (or `--size` if smaller), the error of
 //! progressive photon mapping (default, fixed radius, kd index, independent photons, direct
-//! light from photons) and of the path tracer against a path-traced reference of many
+//! light from photons, final gathering; `KDRAY_PHOTONS_VARIANTS` picks some) and of the path tracer against a path-traced reference of many
 //! samples, against wall time (whole renders: every pass and transfer). Error: RMSE of the
 //! displayed images (clamped at 1) over the reference's mean (the measure), and relMSE.
 //! The reference is written as `reference-SCENE.pfm` and the scene for Mitsuba as
@@ -22,7 +23,7 @@ use super::{device_line, write_cells, Options, Scenes};
 use kdray::accel::Accel;
 use kdray::image_out::{image_error, write_pfm};
 use kdray::integrator::path::{self, FrameBuffers, PathOptions};
-use kdray::integrator::photon::{self as pm, IndexKind, PhotonMap, PhotonOptions};
+use kdray::integrator::photon::{self as pm, FinalGather, IndexKind, PhotonMap, PhotonOptions};
 use kdray::integrator::RenderOutput;
 use kdray::kernels::TracePhotons;
 use kdray_shared::PhotonParams;
@@ -84,7 +85,7 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
     o.progress.set_length(specs.len() as u64 * 2);
     let speed_header: Vec<String> = [
         "scene", "triangles", "photons", "rays traced", "bounces", "bounces/photon", "stored", "trace ms", "M bounces/s", "BVH trace ms", "BVH M bounces/s",
-        "split trace ms", "trace parts: emit only / first hit only / no stores ms", "index grid ms", "grid keys / sort / permute ms", "cells, slots", "index kd ms", "eye ms", "BVH eye ms", "gather grid ms", "gather grid 2r ms", "gather kd ms", "image",
+        "split trace ms", "trace parts: emit only / first hit only / no stores ms", "index grid ms", "grid keys / sort / permute ms", "cells, slots", "index kd ms", "eye ms", "BVH eye ms", "gather grid ms", "gather grid 2r ms", "gather kd ms", "final gather: stored", "BVH eye + final gather + gather ms", "image",
     ]
     .map(String::from)
     .to_vec();
@@ -103,7 +104,7 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
         let area = scene.surface_area();
         // Speed: one pass of `photons` photons, both indices.
         let mut row = vec![scene.name.clone(), scene.triangles.len().to_string(), photons.to_string()];
-        let base = PhotonOptions { photons, passes: 1, ..Default::default() };
+        let base = PhotonOptions { photons, passes: 1, final_gather: FinalGather::Off, ..Default::default() };
         let split = PhotonMap::new(&t, accel, Some(tree), area, PhotonOptions { fused: false, ..base.clone() })?;
         let (rays, bounces) = split.count_bounces(0)?;
         let split_ms = time_recorded(rt, copies, &|c| split.record_trace(c, 0))?;
@@ -140,7 +141,10 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
         let index_kd = time_recorded(rt, copies, &|c| kd.record_index(c, 0))?;
         let cam = scene.camera.to_pod(o.size, o.size);
         let n = (o.size * o.size) as usize;
-        let (eye_ms, bvh_eye_ms, gather_grid, gather_wide, gather_kd) = if t.batch_size(accel, n) >= n {
+        // The final gather's map holds the direct photons too.
+        let mut fg_map = PhotonMap::new(&t, Accel::BVH, Some(tree), area, PhotonOptions { final_gather: FinalGather::All, ..base.clone() })?;
+        let fg_stored = fg_map.trace_and_index(0)?;
+        let (eye_ms, bvh_eye_ms, gather_grid, gather_wide, gather_kd, fg_ms) = if t.batch_size(accel, n) >= n {
             let fb = FrameBuffers::new(&t, accel, n)?;
             let po = PathOptions { seed: 1, bounces: 16, diffuse_bounces: 0, spp: 1, jitter: true, fused: true };
             let mut p = path::params(&t, &cam, &po, 0, n, 0);
@@ -160,10 +164,22 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
             let g = time_recorded(rt, copies, &|c| rt.dispatch(c, &grid.gather(0, n as u32, &fb)))?;
             let w = time_recorded(rt, copies, &|c| rt.dispatch(c, &wide.gather(0, n as u32, &fb)))?;
             let k = time_recorded(rt, copies, &|c| rt.dispatch(c, &kd.gather(0, n as u32, &fb)))?;
-            (format!("{eye:.3}"), format!("{bvh_eye:.3}"), format!("{g:.3}"), format!("{w:.3}"), format!("{k:.3}"))
+            // Eye paths to their first points, resumed to the second, the gather there (no
+            // caustic gather at the first point: the whole final gather but that).
+            let fg = time_recorded(rt, copies, &|c| {
+                for k in path::eye_passes(&t, Accel::BVH, &p, &fb, true)? {
+                    rt.dispatch(c, k.as_ref())?;
+                }
+                for k in path::eye_passes(&t, Accel::BVH, &pm::final_gather_params(&p), &fb, true)? {
+                    rt.dispatch(c, k.as_ref())?;
+                }
+                rt.dispatch(c, &fg_map.gather(0, n as u32, &fb))
+            })?;
+            (format!("{eye:.3}"), format!("{bvh_eye:.3}"), format!("{g:.3}"), format!("{w:.3}"), format!("{k:.3}"), format!("{fg:.3}"))
         } else {
-            ("–".into(), "–".into(), "–".into(), "–".into(), "–".into())
+            ("–".into(), "–".into(), "–".into(), "–".into(), "–".into(), "–".into())
         };
+        drop(fg_map);
         row.extend([
             rays.to_string(),
             bounces.to_string(),
@@ -184,6 +200,8 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
             gather_grid,
             gather_wide,
             gather_kd,
+            fg_stored.to_string(),
+            fg_ms,
             format!("{}²", o.size),
         ]);
         speed.push(row);
@@ -196,7 +214,8 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
             o.progress.inc(1);
             continue;
         }
-        // Error against time at err_size².
+        // Error against time at err_size², with the renderer's default traversal (the BVH).
+        let err_accel = Accel::BVH;
         let cam = scene.camera.to_pod(err_size, err_size);
         let hidden = ();
         let ref_spp: u32 = std::env::var("KDRAY_REFERENCE_SPP").ok().and_then(|v| v.parse().ok()).unwrap_or(if software { 256 } else { 8192 });
@@ -218,8 +237,8 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
             }
             None => {
                 let start = Instant::now();
-                let half_a = path::render(&t, accel, &cam, &PathOptions::path(0x5EED, 64, ref_spp / 2), &hidden)?;
-                let half_b = path::render(&t, accel, &cam, &PathOptions::path(0xFACADE, 64, ref_spp / 2), &hidden)?;
+                let half_a = path::render(&t, err_accel, &cam, &PathOptions::path(0x5EED, 64, ref_spp / 2), &hidden)?;
+                let half_b = path::render(&t, err_accel, &cam, &PathOptions::path(0xFACADE, 64, ref_spp / 2), &hidden)?;
                 let ref_secs = start.elapsed().as_secs_f64();
                 let mut reference = half_a.clone();
                 for (r, b) in reference.radiance.iter_mut().zip(&half_b.radiance) {
@@ -239,7 +258,8 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
         let _ = kdray::scene::mitsuba::export(scene, &o.out.join(format!("mitsuba-{}", scene.name)), err_size, err_size, 65);
         let mut series: Vec<Series> = Vec::new();
         let pass_counts: Vec<u32> = if software { vec![1, 4] } else { vec![1, 4, 16, 64, 256] };
-        let d = PhotonOptions { photons, eye_samples: 4, ..Default::default() };
+        // The baseline reads the photon map at the first diffuse point (direct visualisation).
+        let d = PhotonOptions { photons, eye_samples: 4, final_gather: FinalGather::Off, ..Default::default() };
         let variants: Vec<(String, PhotonOptions)> = vec![
             (format!("ppm, 1 eye sample/pass"), PhotonOptions { eye_samples: 1, ..d.clone() }),
             (format!("ppm, 4 eye samples/pass"), d.clone()),
@@ -249,12 +269,19 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
             ("ppm kd index (4 eye)".into(), PhotonOptions { index: IndexKind::Kd, ..d.clone() }),
             ("ppm independent photons (4 eye)".into(), PhotonOptions { spread: 0.0, ..d.clone() }),
             ("ppm direct from photons (4 eye)".into(), PhotonOptions { photon_direct: true, ..d.clone() }),
+            ("ppm final gather, 4 eye samples/pass".into(), PhotonOptions { final_gather: FinalGather::All, ..d.clone() }),
+            ("ppm final gather, 16 eye samples/pass".into(), PhotonOptions { final_gather: FinalGather::All, eye_samples: 16, ..d.clone() }),
+            ("ppm final gather near edges, 4 eye samples/pass".into(), PhotonOptions { final_gather: FinalGather::Edges, ..d.clone() }),
+            ("ppm final gather near edges, 16 eye samples/pass".into(), PhotonOptions { final_gather: FinalGather::Edges, eye_samples: 16, ..d.clone() }),
         ];
+        // KDRAY_PHOTONS_VARIANTS="a;b": only the variants whose names contain one of them.
+        let only: Option<Vec<String>> = std::env::var("KDRAY_PHOTONS_VARIANTS").ok().map(|v| v.split(';').map(String::from).collect());
+        let variants: Vec<_> = variants.into_iter().filter(|(n, _)| only.as_ref().is_none_or(|o| o.iter().any(|w| n.contains(w.as_str())))).collect();
         for (name, v) in variants {
             let mut pts = Vec::new();
             for &passes in &pass_counts {
                 let start = Instant::now();
-                let mut map = PhotonMap::new(&t, accel, Some(tree), area, PhotonOptions { passes, ..v.clone() })?;
+                let mut map = PhotonMap::new(&t, err_accel, Some(tree), area, PhotonOptions { passes, ..v.clone() })?;
                 let (img, _) = pm::render(&mut map, &cam, &hidden)?;
                 let secs = start.elapsed().as_secs_f64();
                 let (e, m) = error_of(&img, &reference);
@@ -267,7 +294,7 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
         let mut pts = Vec::new();
         for &spp in &spps {
             let start = Instant::now();
-            let img = path::render(&t, accel, &cam, &PathOptions::path(0xA11CE, 64, spp), &hidden)?;
+            let img = path::render(&t, err_accel, &cam, &PathOptions::path(0xA11CE, 64, spp), &hidden)?;
             let secs = start.elapsed().as_secs_f64();
             let (e, m) = error_of(&img, &reference);
             pts.push((secs, e * 100.0));
