@@ -623,19 +623,20 @@ impl Kernel for CountKeys<'_> {
     }
 }
 
-/// Counting sort, pass 3: one step of the prefix sum over the chunk sums (`sort::scan_step`).
-pub struct ScanStep<'a> {
-    /// Elements (`cells`) and the step's distance (`step`; 0: copy).
+/// Counting sort, pass 3: the exclusive prefix sums of the top level, by one item
+/// (`sort::scan_top`).
+pub struct ScanTop<'a> {
+    /// The level's elements (`cells`).
     pub params: SortParams,
-    /// The scan so far.
+    /// The top level's sums.
     pub input: &'a Buffer<u32>,
-    /// Written: `input[i] + input[i − step]` (`input[i]` where `i < step`).
+    /// Written: their exclusive prefix sums.
     pub output: &'a Buffer<u32>,
 }
 
-impl Kernel for ScanStep<'_> {
+impl Kernel for ScanTop<'_> {
     fn entry(&self) -> Cow<'static, str> {
-        "scan_step".into()
+        "scan_top".into()
     }
     fn params(&self) -> &[u8] {
         bytemuck::bytes_of(&self.params)
@@ -644,22 +645,55 @@ impl Kernel for ScanStep<'_> {
         vec![read("input", self.input), write("output", self.output)]
     }
     fn threads(&self) -> u32 {
+        1
+    }
+    fn run(&self, t: u32) {
+        // SAFETY: called by the native runtime during the dispatch of this pass, which holds
+        // its bindings; only item 0 writes.
+        unsafe { sort::scan_top(t, &self.params, self.input.host(), &mut self.output.host_store()) }
+    }
+}
+
+/// Counting sort, pass 4: one level down, each element gets its exclusive prefix sum
+/// (`sort::exclusive_level`).
+pub struct ExclusiveLevel<'a> {
+    /// The level's elements (`cells`).
+    pub params: SortParams,
+    /// The level's sums.
+    pub input: &'a Buffer<u32>,
+    /// The exclusive prefix sums of the level above (one per chunk of this level).
+    pub above: &'a Buffer<u32>,
+    /// Written: this level's exclusive prefix sums.
+    pub output: &'a Buffer<u32>,
+}
+
+impl Kernel for ExclusiveLevel<'_> {
+    fn entry(&self) -> Cow<'static, str> {
+        "exclusive_level".into()
+    }
+    fn params(&self) -> &[u8] {
+        bytemuck::bytes_of(&self.params)
+    }
+    fn bindings(&self) -> Vec<Bind<'_>> {
+        vec![read("input", self.input), read("above", self.above), write("output", self.output)]
+    }
+    fn threads(&self) -> u32 {
         self.params.cells
     }
     fn run(&self, t: u32) {
         // SAFETY: called by the native runtime during the dispatch of this pass, which holds
         // its bindings; item t writes output[t] only.
-        unsafe { sort::scan_step(t, &self.params, self.input.host(), &mut self.output.host_store()) }
+        unsafe { sort::exclusive_level(t, &self.params, self.input.host(), self.above.host(), &mut self.output.host_store()) }
     }
 }
 
-/// Counting sort, pass 2: the sums of chunks of counts (`sort::chunk_sums`).
+/// Counting sort, pass 2: one level up, the sums of chunks of a level (`sort::chunk_sums`).
 pub struct ChunkSums<'a> {
-    /// Cells (`cells`) whose counts are summed.
+    /// Elements (`cells`) of the level summed.
     pub params: SortParams,
-    /// Items per cell (`CountKeys`).
+    /// The level: items per cell (`CountKeys`), or the sums of the level below.
     pub counts: &'a Buffer<u32>,
-    /// Written: the sum of each chunk of `CHUNK` consecutive counts.
+    /// Written: the sum of each chunk of `CHUNK` consecutive elements.
     pub sums: &'a Buffer<u32>,
 }
 
@@ -683,14 +717,15 @@ impl Kernel for ChunkSums<'_> {
     }
 }
 
-/// Counting sort, pass 4: cell offsets and scatter cursors (`sort::exclusive`).
+/// Counting sort, pass 4 at the bottom level: cell offsets and scatter cursors
+/// (`sort::exclusive`).
 pub struct ExclusiveOffsets<'a> {
     /// Cells (`cells`).
     pub params: SortParams,
     /// Items per cell (`CountKeys`).
     pub counts: &'a Buffer<u32>,
-    /// The inclusive prefix sum of the chunk sums (`ScanStep`).
-    pub inclusive: &'a Buffer<u32>,
+    /// The exclusive prefix sums of the chunks of counts (`ExclusiveLevel` or `ScanTop`).
+    pub above: &'a Buffer<u32>,
     /// Written: each cell's first slot (`cells + 1` entries; the last is every item counted).
     pub offsets: &'a Buffer<u32>,
     /// Written: a copy of the offsets as scatter cursors (`cells` entries).
@@ -705,7 +740,7 @@ impl Kernel for ExclusiveOffsets<'_> {
         bytemuck::bytes_of(&self.params)
     }
     fn bindings(&self) -> Vec<Bind<'_>> {
-        vec![read("counts", self.counts), read("inclusive", self.inclusive), write("offsets", self.offsets), write("cursor", self.cursor)]
+        vec![read("counts", self.counts), read("above", self.above), write("offsets", self.offsets), write("cursor", self.cursor)]
     }
     fn threads(&self) -> u32 {
         self.params.cells + 1
@@ -714,7 +749,7 @@ impl Kernel for ExclusiveOffsets<'_> {
         // SAFETY: called by the native runtime during the dispatch of this pass, which holds
         // its bindings; item t writes offsets[t] and cursor[t] only.
         unsafe {
-            sort::exclusive(t, &self.params, self.counts.host(), self.inclusive.host(), &mut self.offsets.host_store(), &mut self.cursor.host_store())
+            sort::exclusive(t, &self.params, self.counts.host(), self.above.host(), &mut self.offsets.host_store(), &mut self.cursor.host_store())
         }
     }
 }

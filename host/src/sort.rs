@@ -1,8 +1,10 @@
 //! Counting sort by cell on either runtime, from the `kdray_shared::sort` kernels: clear the
-//! histogram, count, sum chunks of 32 counts, prefix-sum the chunk sums (⌈log2 chunks⌉ scan
-//! steps), turn them and the counts into offsets and cursors, scatter. The photon index sorts photons by cell with it; the passes are recorded into the
-//! caller's commands, so a schedule runs them with its other passes.
-use crate::kernels::{ChunkSums, CountKeys, ExclusiveOffsets, ScanStep, ScatterKeys};
+//! histogram, count, sum chunks of 32 up the levels until at most 32 are left, scan those in one
+//! item, turn the prefixes into each level's below them down to the cells' offsets and cursors,
+//! scatter (2 log32(cells) + 4 dispatches). The photon index sorts photons by cell with it;
+//! the passes are recorded into the caller's commands, so a schedule runs them with its other
+//! passes.
+use crate::kernels::{ChunkSums, CountKeys, ExclusiveLevel, ExclusiveOffsets, ScanTop, ScatterKeys};
 use crate::runtime::{Buffer, Commands, Runtime};
 use crate::error::{bail, Result};
 use kdray_shared::SortParams;
@@ -12,7 +14,9 @@ pub struct CountingSort<'r> {
     rt: &'r dyn Runtime,
     cells: u32,
     counts: Buffer<u32>,
-    scan: [Buffer<u32>; 2],
+    /// Per level above the cells: its elements, their sums and their exclusive prefix sums
+    /// (level 1: the sums of chunks of counts; the last has at most `CHUNK` elements).
+    levels: Vec<(u32, Buffer<u32>, Buffer<u32>)>,
     /// `cells + 1` entries: items with a smaller key; the last, all items placed.
     pub offsets: Buffer<u32>,
     cursor: Buffer<u32>,
@@ -25,12 +29,20 @@ impl<'r> CountingSort<'r> {
             bail!(TooLarge: "a counting sort needs 1 to 2^32 - 2 cells, not {cells}");
         }
         let n = cells as usize;
-        let chunks = kdray_shared::sort::chunks(cells) as usize;
+        let mut levels = Vec::new();
+        let mut size = cells;
+        loop {
+            size = kdray_shared::sort::chunks(size);
+            levels.push((size, rt.alloc("scan level sums", size as usize)?, rt.alloc("scan level prefixes", size as usize)?));
+            if size <= kdray_shared::sort::CHUNK {
+                break;
+            }
+        }
         Ok(CountingSort {
             rt,
             cells,
             counts: rt.alloc("cell counts", n)?,
-            scan: [rt.alloc("chunk scan", chunks)?, rt.alloc("chunk scan", chunks)?],
+            levels,
             offsets: rt.alloc("cell offsets", n + 1)?,
             cursor: rt.alloc("cell cursors", n)?,
         })
@@ -43,22 +55,23 @@ impl<'r> CountingSort<'r> {
             bail!(TooLarge: "a counting sort of {n} items with {} keys and room for {}", keys.len(), order.len());
         }
         let rt = self.rt;
-        let p = SortParams { count: n, cells: self.cells, step: 0, _pad: 0 };
+        let p = SortParams { count: n, cells: self.cells, _pad: [0; 2] };
         rt.clear(c, self.counts.raw())?;
         rt.dispatch(c, &CountKeys { params: p, keys, counts: &self.counts })?;
-        rt.dispatch(c, &ChunkSums { params: p, counts: &self.counts, sums: &self.scan[0] })?;
-        let chunks = kdray_shared::sort::chunks(self.cells);
-        let mut src = &self.scan[0];
-        let mut step = 1u32;
-        let mut k = 1;
-        while step < chunks {
-            let dst = &self.scan[k % 2];
-            rt.dispatch(c, &ScanStep { params: SortParams { cells: chunks, step, ..p }, input: src, output: dst })?;
-            src = dst;
-            k += 1;
-            step = step.saturating_mul(2);
+        // Up: each level the sums of chunks of the one below.
+        let mut below = (self.cells, &self.counts);
+        for (size, sums, _) in &self.levels {
+            rt.dispatch(c, &ChunkSums { params: SortParams { cells: below.0, ..p }, counts: below.1, sums })?;
+            below = (*size, sums);
         }
-        rt.dispatch(c, &ExclusiveOffsets { params: p, counts: &self.counts, inclusive: src, offsets: &self.offsets, cursor: &self.cursor })?;
+        // The top in one item, then down: each level's prefixes from those of the one above.
+        let (top, top_sums, top_ex) = self.levels.last().expect("at least one level");
+        rt.dispatch(c, &ScanTop { params: SortParams { cells: *top, ..p }, input: top_sums, output: top_ex })?;
+        for w in self.levels.windows(2).rev() {
+            let ((size, sums, ex), (_, _, above)) = (&w[0], &w[1]);
+            rt.dispatch(c, &ExclusiveLevel { params: SortParams { cells: *size, ..p }, input: sums, above, output: ex })?;
+        }
+        rt.dispatch(c, &ExclusiveOffsets { params: p, counts: &self.counts, above: &self.levels[0].2, offsets: &self.offsets, cursor: &self.cursor })?;
         rt.dispatch(c, &ScatterKeys { params: p, keys, cursor: &self.cursor, order })
     }
 }

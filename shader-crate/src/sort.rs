@@ -17,14 +17,26 @@ pub fn count_keys(
 }
 
 #[spirv(compute(threads(64)))]
-pub fn scan_step(
+pub fn scan_top(
     #[spirv(global_invocation_id)] id: UVec3,
     #[spirv(num_workgroups)] groups: UVec3,
     #[spirv(push_constant)] params: &SortParams,
     #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] input: &[u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] output: &mut [u32],
 ) {
-    sort::scan_step(crate::item(id, groups), params, input, output);
+    sort::scan_top(crate::item(id, groups), params, input, output);
+}
+
+#[spirv(compute(threads(64)))]
+pub fn exclusive_level(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(num_workgroups)] groups: UVec3,
+    #[spirv(push_constant)] params: &SortParams,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] input: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] above: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] output: &mut [u32],
+) {
+    sort::exclusive_level(crate::item(id, groups), params, input, above, output);
 }
 
 #[spirv(compute(threads(64)))]
@@ -44,11 +56,11 @@ pub fn exclusive_offsets(
     #[spirv(num_workgroups)] groups: UVec3,
     #[spirv(push_constant)] params: &SortParams,
     #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] counts: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] inclusive: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] above: &[u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] offsets: &mut [u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] cursor: &mut [u32],
 ) {
-    sort::exclusive(crate::item(id, groups), params, counts, inclusive, offsets, cursor);
+    sort::exclusive(crate::item(id, groups), params, counts, above, offsets, cursor);
 }
 
 #[spirv(compute(threads(64)))]

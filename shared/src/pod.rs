@@ -237,12 +237,11 @@ impl RenderParams {
 pub struct SortParams {
     /// Items to sort (keys).
     pub count: u32,
-    /// Cells: keys below it are sorted, others left out. For `scan_step`, the elements scanned.
+    /// Cells: keys below it are sorted, others left out. For the passes over a level of the
+    /// scan, the level's elements.
     pub cells: u32,
-    /// Distance of a `scan_step` (0: copy).
-    pub step: u32,
     /// Padding to 16 bytes.
-    pub _pad: u32,
+    pub _pad: [u32; 2],
 }
 
 /// Push constants of simple per-item kernels (`rng_fill`).

@@ -1,19 +1,20 @@
 //! Counting sort of items by a small integer key (a cell), as per-item kernels: the photon
-//! index sorts photons by cell with it. Four kinds of pass, each one item per thread:
+//! index sorts photons by cell with it. The passes, each one item per thread:
 //!
 //! 1. `count_keys`: `counts[key[i]] += 1` (atomic);
-//! 2. `chunk_sums`: the sum of every chunk of `CHUNK` consecutive counts;
-//! 3. `scan_step`, ⌈log2 chunks⌉ times (Hillis & Steele): an inclusive prefix sum of the chunk
-//!    sums, `out[i] = in[i] + in[i − d]` for d = 1, 2, 4, …, ping-ponging between two buffers
-//!    (over cells / 32 elements: 5 dispatches fewer and 32× less traffic than over the cells);
-//! 4. `exclusive`: `offsets[c]` = items with a smaller key (`offsets[cells]` = all counted) — the
-//!    chunks before c's plus the counts before c in its chunk — and a copy of it as the scatter
-//!    cursors;
+//! 2. up the levels, `chunk_sums`: the sum of every chunk of `CHUNK` consecutive elements of
+//!    the level below (the counts, then the sums), until a level has at most `CHUNK` elements
+//!    (3.5 M cells: 110 592, 3 456, 108, 4);
+//! 3. `scan_top`: one item, the exclusive prefix sum of the top level (at most `CHUNK` elements);
+//! 4. down the levels, `exclusive_level`, one item per element: the element's chunk's prefix
+//!    plus the elements before it in the chunk; at the bottom `exclusive` writes `offsets[c]` =
+//!    items with a smaller key (`offsets[cells]` = all counted) and a copy as the scatter cursors;
 //! 5. `scatter`: item i goes to `order[cursor[key[i]]++]` (atomic).
 //!
-//! Items with a key ≥ `cells` are left out (not counted, not placed). Within a cell the order
-//! of items is whatever order the atomic increments happened in (on a GPU, not deterministic);
-//! the offsets are exact.
+//! The dispatches grow with log32 of the cells (11 for 3.5 M cells, against 22 for a
+//! Hillis–Steele scan of the chunk sums). Items with a key ≥ `cells` are left out (not counted, not placed). Within a cell the
+//! order of items is whatever order the atomic increments happened in (on a GPU, not
+//! deterministic); the offsets are exact.
 use crate::kernel::{AtomicStore, Store};
 use crate::pod::SortParams;
 
@@ -37,19 +38,7 @@ pub fn count_keys<C: AtomicStore + ?Sized>(i: u32, p: &SortParams, keys: &[u32],
     }
 }
 
-/// One step of the inclusive scan over `p.cells` elements with distance `p.step` (0: copy).
-#[inline(always)]
-pub fn scan_step<O: Store<u32> + ?Sized>(i: u32, p: &SortParams, input: &[u32], out: &mut O) {
-    if i < p.cells {
-        let mut v = input[i as usize];
-        if p.step > 0 && i >= p.step {
-            v = v.wrapping_add(input[(i - p.step) as usize]);
-        }
-        out.store(i as usize, v);
-    }
-}
-
-/// Chunk `i`'s sum of counts (`chunks(p.cells)` items).
+/// Chunk `i`'s sum of the `p.cells` elements of `counts` (`chunks(p.cells)` items).
 #[inline(always)]
 pub fn chunk_sums<O: Store<u32> + ?Sized>(i: u32, p: &SortParams, counts: &[u32], sums: &mut O) {
     if i < chunks(p.cells) {
@@ -64,25 +53,59 @@ pub fn chunk_sums<O: Store<u32> + ?Sized>(i: u32, p: &SortParams, counts: &[u32]
     }
 }
 
-/// Offsets (`cells + 1` entries) and scatter cursors (`cells` entries) from the counts and the
-/// inclusive scan of the chunk sums.
+/// The top level: one item writes the exclusive prefix sums of the `p.cells` elements of
+/// `input` (at most `CHUNK` where the sort calls it) to `out`.
+#[inline(always)]
+pub fn scan_top<O: Store<u32> + ?Sized>(i: u32, p: &SortParams, input: &[u32], out: &mut O) {
+    if i == 0 {
+        let mut v = 0u32;
+        let mut c = 0;
+        while c < p.cells {
+            out.store(c as usize, v);
+            v = v.wrapping_add(input[c as usize]);
+            c += 1;
+        }
+    }
+}
+
+/// The exclusive prefix sum at element `i` of a level of `cells` (≥ 1) elements `input`: its
+/// chunk's prefix `above[chunk]` plus the elements of the chunk before it; `i == cells` gives
+/// the total. (One item per element: the items of a chunk read the same few words, which a
+/// GPU serves to a whole subgroup at once, and write side by side.)
+#[inline(always)]
+fn prefix_at(i: u32, cells: u32, input: &[u32], above: &[u32]) -> u32 {
+    let chunk = if i == cells { (cells - 1) / CHUNK } else { i / CHUNK };
+    let mut v = above[chunk as usize];
+    let mut c = chunk * CHUNK;
+    while c < i {
+        v = v.wrapping_add(input[c as usize]);
+        c += 1;
+    }
+    v
+}
+
+/// Element `i` of the `p.cells` elements of `input`, down one level: its exclusive prefix sum
+/// from the chunks' prefixes `above` (`prefix_at`).
+#[inline(always)]
+pub fn exclusive_level<O: Store<u32> + ?Sized>(i: u32, p: &SortParams, input: &[u32], above: &[u32], out: &mut O) {
+    if i < p.cells {
+        out.store(i as usize, prefix_at(i, p.cells, input, above));
+    }
+}
+
+/// Cell `i`, the bottom level: its offset (`cells + 1` entries: item `cells` writes the total)
+/// and scatter cursor (`cells` entries) from the counts and the chunks' prefixes `above`.
 #[inline(always)]
 pub fn exclusive<O: Store<u32> + ?Sized, C: Store<u32> + ?Sized>(
     i: u32,
     p: &SortParams,
     counts: &[u32],
-    chunk_inclusive: &[u32],
+    above: &[u32],
     offsets: &mut O,
     cursor: &mut C,
 ) {
     if i <= p.cells {
-        let chunk = i / CHUNK;
-        let mut v = if chunk == 0 { 0 } else { chunk_inclusive[(chunk - 1) as usize] };
-        let mut c = chunk * CHUNK;
-        while c < i {
-            v = v.wrapping_add(counts[c as usize]);
-            c += 1;
-        }
+        let v = prefix_at(i, p.cells, counts, above);
         offsets.store(i as usize, v);
         if i < p.cells {
             cursor.store(i as usize, v);
