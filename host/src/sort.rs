@@ -1,7 +1,7 @@
 //! Counting sort by cell on either runtime, from the `kdray_shared::sort` kernels: clear the
 //! histogram, count, sum chunks of 32 up the levels until at most 32 are left, scan those in one
 //! item, turn the prefixes into each level's below them down to the cells' offsets and cursors,
-//! scatter (2 log32(cells) + 4 dispatches). The photon index sorts photons by cell with it;
+//! scatter (2 L + 3 dispatches for L = max(1, ⌈log32 cells⌉ − 1) levels). The photon index sorts photons by cell with it;
 //! the passes are recorded into the caller's commands, so a schedule runs them with its other
 //! passes.
 use crate::kernels::{ChunkSums, CountKeys, ExclusiveLevel, ExclusiveOffsets, ScanTop, ScatterKeys};
@@ -23,10 +23,11 @@ pub struct CountingSort<'r> {
 }
 
 impl<'r> CountingSort<'r> {
-    /// Working buffers on `rt` for keys 0..`cells`; `cells` must be 1 to 2^32 - 2.
+    /// Working buffers on `rt` for keys 0..`cells`; `cells` must be 1 to 2^32 − 65.
     pub fn new(rt: &'r dyn Runtime, cells: u32) -> Result<Self> {
-        if cells == 0 || cells == u32::MAX {
-            bail!(TooLarge: "a counting sort needs 1 to 2^32 - 2 cells, not {cells}");
+        // Chunk ends, (i + 1) · CHUNK, must not overflow.
+        if cells == 0 || cells > u32::MAX - 2 * kdray_shared::sort::CHUNK {
+            bail!(TooLarge: "a counting sort needs 1 to 2^32 - 65 cells, not {cells}");
         }
         let n = cells as usize;
         let mut levels = Vec::new();

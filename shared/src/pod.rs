@@ -434,8 +434,9 @@ pub struct IndexParams {
 /// rays have counted their light).
 pub const GATHER_SKIP_DIRECT: u32 = 1;
 /// `IndexParams::gather_flags`: final gathering near edges only. A gather point whose disc
-/// holds a photon of the global map on a surface of another orientation (a corner or an edge
-/// within the radius, where the disc reaches past its surface and the estimate is biased) takes
+/// holds a photon of the global map on a surface of another orientation (normals more than 60°
+/// apart: a corner or an edge within the radius, where the disc reaches past its surface and
+/// the estimate is biased, or the back of thin geometry) takes
 /// only the caustic map and stays a gather point, to be resumed by the final gather; any other
 /// takes every map and ends.
 pub const GATHER_EDGES: u32 = 2;

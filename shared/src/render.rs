@@ -12,7 +12,7 @@ use crate::pod::{
     RENDER_CONTINUE, RENDER_JITTER,
 };
 use crate::ray::Ray;
-use crate::rng::Rng;
+use crate::rng::{pcg_hash, Rng};
 use crate::shade;
 
 /// Path `i` of the batch (sample i / pixels of pixel i % pixels): its primary ray and a fresh
@@ -45,13 +45,14 @@ pub fn camera_sample(i: u32, p: &RenderParams) -> (Ray, PathState) {
 /// diffuse bounce from it: the final gather. Its throughput (which holds albedo/π there) times
 /// π, the cosine and the pdf cos/π cancelling; the radiance it has gathered is kept. A path
 /// that did not end at a gather point stays ended. Random numbers come from the stream of
-/// (`p.seed`, pixel).
+/// (hash of `p.seed`, pixel), apart from every bounce's (`shade::path_step` keys bounce b by
+/// `p.seed ^ b · 0x9E37_79B9`).
 #[inline(always)]
 pub fn resume(p: &RenderParams, point: &Ray, path: &PathState) -> (Ray, PathState) {
     if path.flags & PATH_GATHER == 0 {
         return (shade::NO_RAY, PathState { flags: 0, ..*path });
     }
-    let mut rng = Rng::new(p.seed ^ 0x3C6E_F372, path.pixel);
+    let mut rng = Rng::new(pcg_hash(p.seed ^ 0x5BD1_E995), path.pixel);
     let n = point.dir;
     let d = cosine_direction(n, rng.next_f32(), rng.next_f32());
     let next = PathState {

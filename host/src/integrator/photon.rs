@@ -67,8 +67,9 @@ pub enum FinalGather {
     /// The photon map read at the first diffuse point (direct visualisation, the paper's).
     Off,
     /// A final gather only where the first point's disc holds photons on surfaces of other
-    /// orientations (a corner or an edge within the radius: `GATHER_EDGES`); the photon map
-    /// read directly everywhere else.
+    /// orientations, normals more than 60° apart (a corner or an edge within the radius, but
+    /// also the back of thin geometry or strongly curved surfaces: `GATHER_EDGES`); the photon
+    /// map read directly everywhere else. Edges of less than 60° are not detected.
     Edges,
     /// A final gather at every first diffuse point.
     All,
@@ -98,7 +99,8 @@ pub struct PhotonOptions {
     /// (`COHERENT_SPREAD` by default).
     pub spread: f32,
     /// Everything from the photon map (the paper's way); otherwise direct light by shadow
-    /// rays and only indirect light from the photon map.
+    /// rays and only indirect light from the photon map. Needs `final_gather:
+    /// FinalGather::Off` (a final gather takes direct light from shadow rays).
     pub photon_direct: bool,
     /// Final gathering, everywhere, near edges only, or not at all (`FinalGather`).
     pub final_gather: FinalGather,
@@ -603,6 +605,8 @@ pub fn eye_params(t: &Tracer, cam: &Camera, o: &PhotonOptions, first: usize, cou
 /// gather points, their own random streams, all light from the photon map at the next
 /// diffuse point.
 pub fn final_gather_params(eye: &RenderParams) -> RenderParams {
+    // The eye pass's other flags (jitter) concern the camera rays, which a resumed path has
+    // left behind.
     RenderParams { seed: pcg_hash(eye.seed ^ 0xF17A_16A7), flags: RENDER_GATHER | RENDER_PHOTON_DIRECT | RENDER_CONTINUE, ..*eye }
 }
 

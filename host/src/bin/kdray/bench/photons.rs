@@ -261,10 +261,10 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
         // The baseline reads the photon map at the first diffuse point (direct visualisation).
         let d = PhotonOptions { photons, eye_samples: 4, final_gather: FinalGather::Off, ..Default::default() };
         let variants: Vec<(String, PhotonOptions)> = vec![
-            (format!("ppm, 1 eye sample/pass"), PhotonOptions { eye_samples: 1, ..d.clone() }),
-            (format!("ppm, 4 eye samples/pass"), d.clone()),
-            (format!("ppm, 16 eye samples/pass"), PhotonOptions { eye_samples: 16, ..d.clone() }),
-            (format!("ppm, {}k photons, 16 eye samples/pass", photons / 4096), PhotonOptions { photons: photons / 4, eye_samples: 16, ..d.clone() }),
+            (format!("ppm direct visualisation, 1 eye sample/pass"), PhotonOptions { eye_samples: 1, ..d.clone() }),
+            (format!("ppm direct visualisation, 4 eye samples/pass"), d.clone()),
+            (format!("ppm direct visualisation, 16 eye samples/pass"), PhotonOptions { eye_samples: 16, ..d.clone() }),
+            (format!("ppm direct visualisation, {}k photons, 16 eye samples/pass", photons / 4096), PhotonOptions { photons: photons / 4, eye_samples: 16, ..d.clone() }),
             ("ppm fixed radius (4 eye)".into(), PhotonOptions { alpha: 1.0, ..d.clone() }),
             ("ppm kd index (4 eye)".into(), PhotonOptions { index: IndexKind::Kd, ..d.clone() }),
             ("ppm independent photons (4 eye)".into(), PhotonOptions { spread: 0.0, ..d.clone() }),
