@@ -14,9 +14,9 @@ pub struct CountingSort<'r> {
     rt: &'r dyn Runtime,
     cells: u32,
     counts: Buffer<u32>,
-    /// Per level above the cells: its elements, their sums and their exclusive prefix sums
-    /// (level 1: the sums of chunks of counts; the last has at most `CHUNK` elements).
-    levels: Vec<(u32, Buffer<u32>, Buffer<u32>)>,
+    /// Per level above the cells: its elements' sums and their exclusive prefix sums, one per
+    /// element (level 1: the sums of chunks of counts; the last has at most `CHUNK` elements).
+    levels: Vec<(Buffer<u32>, Buffer<u32>)>,
     /// `cells + 1` entries: items with a smaller key; the last, all items placed.
     pub offsets: Buffer<u32>,
     cursor: Buffer<u32>,
@@ -34,7 +34,7 @@ impl<'r> CountingSort<'r> {
         let mut size = cells;
         loop {
             size = kdray_shared::sort::chunks(size);
-            levels.push((size, rt.alloc("scan level sums", size as usize)?, rt.alloc("scan level prefixes", size as usize)?));
+            levels.push((rt.alloc("scan level sums", size as usize)?, rt.alloc("scan level prefixes", size as usize)?));
             if size <= kdray_shared::sort::CHUNK {
                 break;
             }
@@ -60,19 +60,20 @@ impl<'r> CountingSort<'r> {
         rt.clear(c, self.counts.raw())?;
         rt.dispatch(c, &CountKeys { params: p, keys, counts: &self.counts })?;
         // Up: each level the sums of chunks of the one below.
-        let mut below = (self.cells, &self.counts);
-        for (size, sums, _) in &self.levels {
-            rt.dispatch(c, &ChunkSums { params: SortParams { cells: below.0, ..p }, counts: below.1, sums })?;
-            below = (*size, sums);
+        let cells = |b: &Buffer<u32>| SortParams { cells: b.len() as u32, ..p };
+        let mut below = &self.counts;
+        for (sums, _) in &self.levels {
+            rt.dispatch(c, &ChunkSums { params: cells(below), counts: below, sums })?;
+            below = sums;
         }
         // The top in one item, then down: each level's prefixes from those of the one above.
-        let (top, top_sums, top_ex) = self.levels.last().expect("at least one level");
-        rt.dispatch(c, &ScanTop { params: SortParams { cells: *top, ..p }, input: top_sums, output: top_ex })?;
+        let (top_sums, top_ex) = self.levels.last().expect("at least one level");
+        rt.dispatch(c, &ScanTop { params: cells(top_sums), input: top_sums, output: top_ex })?;
         for w in self.levels.windows(2).rev() {
-            let ((size, sums, ex), (_, _, above)) = (&w[0], &w[1]);
-            rt.dispatch(c, &ExclusiveLevel { params: SortParams { cells: *size, ..p }, input: sums, above, output: ex })?;
+            let ((sums, ex), (_, above)) = (&w[0], &w[1]);
+            rt.dispatch(c, &ExclusiveLevel { params: cells(sums), input: sums, above, output: ex })?;
         }
-        rt.dispatch(c, &ExclusiveOffsets { params: p, counts: &self.counts, above: &self.levels[0].2, offsets: &self.offsets, cursor: &self.cursor })?;
+        rt.dispatch(c, &ExclusiveOffsets { params: p, counts: &self.counts, above: &self.levels[0].1, offsets: &self.offsets, cursor: &self.cursor })?;
         rt.dispatch(c, &ScatterKeys { params: p, keys, cursor: &self.cursor, order })
     }
 }

@@ -116,9 +116,9 @@ pub fn decode_oct(v: u32, bits: u32) -> [f32; 3] {
 
 impl Photon {
     /// A record of a photon of power `power` at `p` on a surface whose normal on the arriving
-    /// side is `n`, arriving along unit `dir` (pointing into the surface).
+    /// side is `n`, arriving along unit `dir` (pointing into the surface); `caustic`: a caustic
+    /// photon, `direct`: stored at its first hit.
     #[inline(always)]
-    /// `direct`: stored at its first hit.
     #[allow(clippy::too_many_arguments)]
     pub fn new(p: [f32; 3], power: [f32; 3], n: [f32; 3], dir: [f32; 3], caustic: bool, direct: bool, dither: f32) -> Photon {
         let from = scale3(dir, -1.0);
@@ -627,14 +627,13 @@ pub fn permute<O: Store<Photon> + ?Sized>(i: u32, p: &IndexParams, photons: &[Ph
 // Gather
 
 /// Sums the photons of visited cells within `r2` of `x` on the side `n` (leaving out direct
-/// ones when `skip` holds `DIRECT_BIT`), and counts those within `r2` on surfaces of other
-/// orientations.
+/// ones under `skip_direct`), and counts those within `r2` on surfaces of other orientations.
 struct Sum {
     x: [f32; 3],
     n: [f32; 3],
     r2: f32,
     filter: u32,
-    skip: u32,
+    skip_direct: bool,
     sum: [f32; 3],
     found: u32,
     other: u32,
@@ -652,7 +651,7 @@ impl CellVisitor for Sum {
             if d2 <= self.r2 {
                 if dot3(ph.normal(), self.n) <= 0.5 {
                     self.other += 1;
-                } else if ph.packed & self.skip == 0 {
+                } else if !(self.skip_direct && ph.is_direct()) {
                     let w = if self.filter == FILTER_CONE {
                         3.0 * (1.0 - crate::math::sqrt(d2 / self.r2))
                     } else if self.filter == FILTER_EPANECHNIKOV {
@@ -686,8 +685,8 @@ pub struct Estimate {
 #[inline(always)]
 pub fn irradiance<I: PhotonIndex>(index: &I, p: &IndexParams, photons: &[Photon], offsets: &[u32], x: [f32; 3], n: [f32; 3], map: u32) -> Estimate {
     let r = p.radius[map as usize];
-    let skip = if p.gather_flags & GATHER_SKIP_DIRECT != 0 { DIRECT_BIT } else { 0 };
-    let mut s = Sum { x, n, r2: r * r, filter: p.filter, skip, sum: [0.0; 3], found: 0, other: 0 };
+    let skip_direct = p.gather_flags & GATHER_SKIP_DIRECT != 0;
+    let mut s = Sum { x, n, r2: r * r, filter: p.filter, skip_direct, sum: [0.0; 3], found: 0, other: 0 };
     index.visit(x, r, map, photons, offsets, &mut s);
     Estimate { irradiance: scale3(s.sum, 1.0 / (core::f32::consts::PI * r * r)), found: s.found, other: s.other }
 }
