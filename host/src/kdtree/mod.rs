@@ -3,4 +3,4 @@
 pub mod sah;
 pub mod clip;
 
-pub use sah::{build, check_limits, try_build, BuildOptions, KdTreeData, TreeStats};
+pub use sah::{build, check_limits, try_build, BuildOptions, KdTreeData, TreeStats, DEFAULT_MAX_DUPLICATION};

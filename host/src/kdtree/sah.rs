@@ -36,13 +36,22 @@ pub struct BuildOptions {
     pub leaf_size: usize,
     /// Nodes with more triangles than this build their children in parallel.
     pub parallel_threshold: usize,
+    /// Most triangle references in the leaves per triangle (at least 1): splits that clip
+    /// triangles into both children duplicate references, and a scene of large overlapping
+    /// triangles (a soup) would otherwise multiply the tree's memory and build time. Each node
+    /// gets a share of the budget in proportion to its children's triangles and takes only the
+    /// splits that fit, so the whole tree holds at most this many references per triangle.
+    pub max_duplication: f32,
 }
 
 impl Default for BuildOptions {
     fn default() -> Self {
-        BuildOptions { k_t: 15.0, k_i: 20.0, empty_bonus: 0.8, max_depth: None, leaf_size: 1, parallel_threshold: 8192 }
+        BuildOptions { k_t: 15.0, k_i: 20.0, empty_bonus: 0.8, max_depth: None, leaf_size: 1, parallel_threshold: 8192, max_duplication: DEFAULT_MAX_DUPLICATION }
     }
 }
+
+/// `BuildOptions::max_duplication` by default.
+pub const DEFAULT_MAX_DUPLICATION: f32 = 32.0;
 
 /// What the build produced, for reports.
 #[derive(Clone, Debug, Default)]
@@ -57,6 +66,9 @@ pub struct TreeStats {
     pub empty_leaves: usize,
     /// Triangle references in leaves / non-empty leaves.
     pub avg_leaf_size: f64,
+    /// Triangle references in all leaves (the primitive index list's length); over
+    /// `triangles` it is the reference duplication, bounded by `BuildOptions::max_duplication`.
+    pub references: usize,
     /// Depth of the deepest node (the root is at depth 0).
     pub max_depth: u32,
     /// The depth limit the build used: `BuildOptions::max_depth` or its default, below `MAX_DEPTH`.
@@ -127,6 +139,9 @@ struct Work {
     events: [Vec<Event>; 3],
     cell: Bounds,
     depth: u32,
+    /// Most references this node's subtree may hold (its share of `max_duplication`; at least
+    /// `tris.len()`).
+    budget: f64,
 }
 
 enum Built {
@@ -175,7 +190,8 @@ impl Ctx<'_> {
         }
     }
 
-    /// The sweep: every event position strictly inside the cell is a candidate plane.
+    /// The sweep: every event position strictly inside the cell is a candidate plane, if its
+    /// children's references fit the node's budget.
     fn best_split(&self, w: &Work) -> Option<Split> {
         let n = w.tris.len();
         let area_cell = area(&w.cell);
@@ -192,7 +208,7 @@ impl Ctx<'_> {
             // the cell's faces and the geometry): left = triangles starting at or before the
             // lower position, right = those ending at or after the upper one.
             let consider = |pos: f32, cl: usize, cr: usize, best: &mut Option<Split>| {
-                if pos > lo && pos < hi {
+                if pos > lo && pos < hi && (cl + cr) as f64 <= w.budget {
                     let cost = self.sah(&w.cell, area_cell, k, pos, cl, cr);
                     if best.is_none_or(|b| cost < b.cost) {
                         *best = Some(Split { cost, axis: k, pos });
@@ -247,7 +263,14 @@ impl Ctx<'_> {
             Some(s) if s.cost < self.opt.k_i as f64 * n as f64 => s,
             _ => return Built::Leaf(w.tris),
         };
-        let (left, right) = self.split(w, split);
+        let (mut left, mut right) = self.split(w, split);
+        // The children share the budget in proportion to their triangles: each keeps at least
+        // its own count (up to rounding, hence the max), and together they keep the parent's.
+        let whole = (left.tris.len() + right.tris.len()) as f64;
+        for c in [&mut left, &mut right] {
+            let n = c.tris.len() as f64;
+            c.budget = if n == 0.0 { 0.0 } else { (c.budget * (n / whole)).max(n) };
+        }
         let (l, r) = if n > self.opt.parallel_threshold {
             rayon::join(|| self.build(left), || self.build(right))
         } else {
@@ -272,8 +295,8 @@ impl Ctx<'_> {
             .iter()
             .map(|b| if b.0[k] == p && b.1[k] == p { 1 } else if b.1[k] <= p { 1 } else if b.0[k] >= p { 2 } else { 3 })
             .collect();
-        let mut lw = Work { tris: Vec::new(), bounds: Vec::new(), events: Default::default(), cell: lcell, depth: w.depth + 1 };
-        let mut rw = Work { tris: Vec::new(), bounds: Vec::new(), events: Default::default(), cell: rcell, depth: w.depth + 1 };
+        let mut lw = Work { tris: Vec::new(), bounds: Vec::new(), events: Default::default(), cell: lcell, depth: w.depth + 1, budget: w.budget };
+        let mut rw = Work { tris: Vec::new(), bounds: Vec::new(), events: Default::default(), cell: rcell, depth: w.depth + 1, budget: w.budget };
         // New local indices; u32::MAX where the triangle is not in that child.
         let mut lidx = vec![u32::MAX; n];
         let mut ridx = vec![u32::MAX; n];
@@ -493,7 +516,8 @@ fn build_within(tris: &[Triangle], opt: &BuildOptions, limits: &Limits) -> Resul
     }
     let magnitude = scene.0.iter().chain(&scene.1).fold(0.0f32, |m, x| m.max(x.abs()));
     let ctx = Ctx { tris, opt, depth_limit, min_gap: magnitude * MIN_GAP };
-    let root = ctx.build(Work { tris: (0..n as u32).collect(), bounds, events, cell: scene, depth: 0 });
+    let budget = opt.max_duplication.max(1.0) as f64 * n as f64;
+    let root = ctx.build(Work { tris: (0..n as u32).collect(), bounds, events, cell: scene, depth: 0, budget });
     let mut counts = TreeCounts::default();
     count(&root, &mut counts);
     check_counts(&counts, limits)?;
@@ -505,6 +529,7 @@ fn build_within(tris: &[Triangle], opt: &BuildOptions, limits: &Limits) -> Resul
     flatten(&root, 0, &mut nodes, &mut prims, scene, 0, &mut st, opt, root_area);
     st.nodes = nodes.len();
     st.avg_leaf_size = prims.len() as f64 / (st.leaves - st.empty_leaves).max(1) as f64;
+    st.references = prims.len();
     st.bytes = nodes.len() * std::mem::size_of::<KdNode>() + prims.len() * 4;
     st.build_seconds = start.elapsed().as_secs_f64();
     debug_assert_eq!((nodes.len() as u64, prims.len() as u64), (counts.nodes, counts.prim_refs));

@@ -474,7 +474,7 @@ impl CameraSpec {
 }
 
 /// Loads a scene by name: a built-in one (`cornell`, `cornell-chair`, `chairs:K`,
-/// `conference`), a `.obj` file or a `.toml` scene file.
+/// `conference`, `soup:N[:S]`), a `.obj` file or a `.toml` scene file.
 pub fn load(spec: &str) -> Result<Scene> {
     let scene = match spec {
         "cornell" => cornell::cornell_box(),
@@ -487,9 +487,17 @@ pub fn load(spec: &str) -> Result<Scene> {
             Ok(k) => procedural::chairs(k)?,
             Err(_) => bail!(Scene: "'{s}': use chairs:K with K = 1, 4, 16, …, 4096"),
         },
+        s if s.starts_with("soup:") => {
+            let mut args = s["soup:".len()..].splitn(2, ':');
+            match (args.next().map(str::parse::<u32>), args.next().map(str::parse::<f32>)) {
+                (Some(Ok(n)), None) => procedural::soup(n, 1.0)?,
+                (Some(Ok(n)), Some(Ok(size))) => procedural::soup(n, size)?,
+                _ => bail!(Scene: "'{s}': use soup:N or soup:N:S (N random triangles of size S in the unit cube)"),
+            }
+        }
         s if s.ends_with(".obj") => in_file(s, obj::load_obj_scene(std::path::Path::new(s)))?,
         s if s.ends_with(".toml") => in_file(s, file::load_scene_file(std::path::Path::new(s)))?,
-        s => bail!(Scene: "unknown scene '{s}': use cornell, cornell-mirror, cornell-mirrors, cornell-glass, cornell-chair, chairs:K, conference, a .obj file or a .toml scene file"),
+        s => bail!(Scene: "unknown scene '{s}': use cornell, cornell-mirror, cornell-mirrors, cornell-glass, cornell-chair, chairs:K, conference, soup:N[:S], a .obj file or a .toml scene file"),
     };
     in_file(spec, scene.validate().map(|_| scene))
 }

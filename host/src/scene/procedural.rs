@@ -1,7 +1,8 @@
 //! Scenes the project generates itself: a tessellated chair (~1 464 triangles), `chairs:K` (a
 //! square grid of K chairs seen from above: the scaling scene of the photon-mapping paper), the
 //! Cornell box with a chair, and a conference room of about 280 000 triangles standing in for
-//! Greg Ward's Conference scene. All closed meshes are built from shared vertex positions.
+//! Greg Ward's Conference scene, and `soup:N` (random triangles). All closed meshes are built
+//! from shared vertex positions.
 use super::{cornell, CameraSpec, PointLight, Scene};
 use crate::error::{bail, Result};
 use glam::{Mat3, Vec3};
@@ -216,6 +217,34 @@ pub fn conference() -> Result<Scene> {
         }
     }
     lamps.into_scene(&mut s, lamp, "lamp")?;
+    Ok(s)
+}
+
+/// `soup:N[:S]`: N random triangles in the unit cube (a fixed seed), each with its vertices
+/// uniform in a cube of side S (default 1: the whole cube) around a uniform centre: large
+/// overlapping triangles, the worst case for a kd-tree's reference duplication and the BVH's
+/// kind of scene. A point light above and a camera in front.
+pub fn soup(n: u32, size: f32) -> Result<Scene> {
+    if n == 0 || n > 1 << 24 {
+        bail!(Scene: "soup:{n}: N must be between 1 and 16 777 216");
+    }
+    if !(size > 0.0 && size <= 1.0) {
+        bail!(Scene: "soup:{n}:{size}: the triangles' size S must be in (0, 1]");
+    }
+    let mut s = Scene::new(
+        if size == 1.0 { format!("soup-{n}") } else { format!("soup-{n}-{size}") },
+        CameraSpec { eye: Vec3::new(0.5, 0.6, -1.6), look_at: Vec3::splat(0.5), up: Vec3::Y, fov_y_deg: 40.0 },
+    );
+    let grey = s.add_material("grey", diffuse([0.6, 0.6, 0.6]));
+    let mut rng = kdray_shared::rng::Rng::new(0x50C9_5EED, 0);
+    let mut unit = || Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+    for _ in 0..n {
+        // The centre keeps the whole triangle inside the unit cube.
+        let c = Vec3::splat(size * 0.5) + unit() * (1.0 - size);
+        let v = [0, 1, 2].map(|_| c + (unit() - Vec3::splat(0.5)) * size);
+        s.add_triangle(v, grey, &|| "soup triangle (generated)".into())?;
+    }
+    s.point_lights.push(PointLight { position: Vec3::new(0.3, 2.0, -0.8), intensity: Vec3::splat(4.0), spot: None });
     Ok(s)
 }
 

@@ -103,6 +103,10 @@ pub struct BuildArgs {
     /// Nodes with at most this many triangles become leaves.
     #[arg(long, default_value_t = 1)]
     pub leaf_size: usize,
+    /// Most triangle references in the kd-tree's leaves per triangle (at least 1; splits that
+    /// clip triangles into both children duplicate them).
+    #[arg(long, default_value_t = kdray::kdtree::DEFAULT_MAX_DUPLICATION)]
+    pub max_duplication: f32,
 }
 
 impl BuildArgs {
@@ -110,12 +114,16 @@ impl BuildArgs {
         if !(self.kt > 0.0 && self.ki > 0.0 && self.empty_bonus > 0.0 && self.empty_bonus <= 1.0) {
             bail!("--kt and --ki must be positive and --empty-bonus in (0, 1]");
         }
+        if !(self.max_duplication >= 1.0) {
+            bail!("--max-duplication must be at least 1");
+        }
         Ok(BuildOptions {
             k_t: self.kt,
             k_i: self.ki,
             empty_bonus: self.empty_bonus,
             max_depth: self.max_depth,
             leaf_size: self.leaf_size,
+            max_duplication: self.max_duplication,
             ..Default::default()
         })
     }
@@ -674,11 +682,12 @@ pub fn build_tree(scene: &scene::Scene, opts: &BuildOptions) -> Result<KdTreeDat
     let t = kdtree::try_build(&scene.triangles, opts)?;
     let s = &t.stats;
     println!(
-        "kd-tree: {} nodes, {} leaves ({} empty), {:.2} triangles per leaf, depth {} (limit {}), SAH cost {:.1}, {:.2} MiB, built in {:.3} s",
+        "kd-tree: {} nodes, {} leaves ({} empty), {:.2} triangles per leaf, {:.2} references per triangle, depth {} (limit {}), SAH cost {:.1}, {:.2} MiB, built in {:.3} s",
         s.nodes,
         s.leaves,
         s.empty_leaves,
         s.avg_leaf_size,
+        s.references as f64 / s.triangles.max(1) as f64,
         s.max_depth,
         s.depth_limit,
         s.sah_cost,

@@ -443,7 +443,7 @@ fn build(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
         specs.extend(["chairs:64".to_string(), "chairs:1024".to_string()]);
     }
     o.progress.set_length(specs.len() as u64);
-    let header: Vec<String> = ["scene", "triangles", "build s", "s per M triangles", "nodes", "leaves", "empty leaves", "triangles/leaf", "depth", "SAH cost", "MiB", "oracle mismatch"].map(String::from).to_vec();
+    let header: Vec<String> = ["scene", "triangles", "build s", "s per M triangles", "nodes", "leaves", "empty leaves", "triangles/leaf", "references/triangle", "depth", "SAH cost", "MiB", "oracle mismatch"].map(String::from).to_vec();
     let mut cells = Vec::new();
     let mut bars = Vec::new();
     for spec in &specs {
@@ -463,6 +463,7 @@ fn build(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
             s.leaves.to_string(),
             s.empty_leaves.to_string(),
             format!("{:.2}", s.avg_leaf_size),
+            format!("{:.2}", s.references as f64 / s.triangles.max(1) as f64),
             s.max_depth.to_string(),
             format!("{:.1}", s.sah_cost),
             format!("{:.2}", s.bytes as f64 / 1048576.0),
