@@ -108,6 +108,50 @@ fn scene_file_with_obj_and_lights_loads() {
     let _ = obj;
 }
 
+/// The built-in Cornell scenes are the files of `scenes/` (#11 item 6): the compiled-in copy
+/// and the folder load the same scene, with the box's published layout.
+#[test]
+fn built_in_scenes_are_the_scene_files_of_the_scenes_folder() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes");
+    for name in scene::FILE_SCENES {
+        let built_in = scene::load(name).unwrap();
+        let file = root.join(format!("{name}.toml"));
+        let from_disk = scene::load(file.to_str().unwrap()).unwrap();
+        assert_eq!(built_in.name, *name);
+        assert_eq!((&built_in.name, &built_in.camera, &built_in.material_names), (&from_disk.name, &from_disk.camera, &from_disk.material_names));
+        assert_eq!(built_in.materials, from_disk.materials, "{name}");
+        assert!(built_in.triangles == from_disk.triangles, "{name}: the compiled-in copy differs from {}", file.display());
+    }
+    let c = scene::load("cornell").unwrap();
+    let material = |s: &scene::Scene, i: usize| s.material_names[s.triangles[i].material as usize].clone();
+    assert_eq!(c.triangles.len(), 32);
+    assert_eq!((material(&c, 0), material(&c, 2), material(&c, 8), material(&c, 10)), ("light".into(), "white".into(), "green".into(), "red".into()));
+    assert_eq!(c.materials[c.triangles[0].material as usize].emission, [17.0, 12.0, 4.0]);
+    let mirror = scene::load("cornell-mirror").unwrap();
+    let mirrors: Vec<usize> = (0..32).filter(|&i| mirror.materials[mirror.triangles[i].material as usize].flags == kdray_shared::MAT_MIRROR).collect();
+    assert_eq!(mirrors, [6, 7, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31], "back wall and tall block");
+    let glass = scene::load("cornell-glass").unwrap();
+    assert_eq!(glass.triangles.len(), 22 + 20_480, "the box without its short block, and the sphere");
+}
+
+/// A scene file picks objects from an OBJ file, and its materials override the MTL file's.
+#[test]
+fn scene_files_select_objects_and_override_mtl_materials() {
+    let obj = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell.obj");
+    let head = format!("[camera]\neye = [278, 273, -800]\nlook_at = [278, 273, 0]\n[materials.red]\ndiffuse = [0.9, 0.9, 0.9]\nmirror = true\n[[mesh]]\nfile = \"{}\"\n", obj.display());
+    let p = tmp("objects.toml", &format!("{head}objects = [\"light\", \"left_wall\"]\n"));
+    let s = scene::load(p.to_str().unwrap()).unwrap();
+    assert_eq!(s.triangles.len(), 4);
+    let red = s.materials[s.triangles[2].material as usize];
+    assert_eq!((red.flags, red.diffuse), (kdray_shared::MAT_MIRROR, [0.9; 3]), "the file's [materials.red] wins over cornell.mtl's");
+    let e = load_err("no-object.toml", &format!("{head}objects = [\"light\", \"window\"]\n"));
+    assert!(e.contains("no object 'window'") && e.contains("short_block"), "{e}");
+    let e = load_err("objects-builtin.toml", "[[mesh]]\nbuiltin = \"icosphere:2\"\nobjects = [\"a\"]\n");
+    assert!(e.contains("'objects' selects objects of an OBJ 'file'"), "{e}");
+    let e = load_err("icosphere.toml", "[[mesh]]\nbuiltin = \"icosphere:x\"\n");
+    assert!(e.contains("icosphere:N"), "{e}");
+}
+
 #[test]
 fn too_large_for_the_gpu_is_a_clear_error() {
     let Some(g) = common::gpu() else { return };

@@ -68,7 +68,7 @@ fn mutate(seed: &[u8], rng: &mut Rng) -> Vec<u8> {
 /// The seed files: each is mutated while the files it refers to stay beside it unchanged.
 fn seeds() -> Vec<PathBuf> {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
-    ["scenes/room.obj", "scenes/room.mtl", "scenes/room.toml", "scenes/ball.obj", "tests/fuzz/polygons.obj", "tests/fuzz/polygons.mtl", "tests/fuzz/lights.toml"]
+    ["scenes/room.obj", "scenes/room.mtl", "scenes/room.toml", "scenes/ball.obj", "scenes/cornell-mirror.toml", "scenes/cornell.mtl", "tests/fuzz/polygons.obj", "tests/fuzz/polygons.mtl", "tests/fuzz/lights.toml"]
         .iter()
         .map(|p| root.join(p))
         .collect()

@@ -580,7 +580,7 @@ mod tests {
     /// The SAH splits the Cornell box and the stored tree is cheaper than one leaf (640).
     #[test]
     fn cornell_box_tree_beats_a_leaf() {
-        let s = crate::scene::cornell::cornell_box();
+        let s = crate::scene::load("cornell").unwrap();
         let t = build(&s.triangles, &BuildOptions::default());
         assert!(t.stats.nodes > 1 && t.stats.sah_cost < 640.0, "{:?}", t.stats);
         assert!(t.stats.max_depth <= t.stats.depth_limit);
@@ -624,7 +624,7 @@ mod tests {
     /// A real build checked against small limits fails with the message, never truncating.
     #[test]
     fn try_build_reports_a_tree_beyond_the_limits() {
-        let s = crate::scene::cornell::cornell_box();
+        let s = crate::scene::load("cornell").unwrap();
         let opt = BuildOptions::default();
         let ok = try_build(&s.triangles, &opt).unwrap();
         let nodes = ok.nodes.len() as u64;

@@ -7,7 +7,7 @@
 //! up = [0.0, 1.0, 0.0]           # optional
 //! fov_y = 40.0                   # degrees, optional
 //!
-//! [materials.white]              # defines or overrides a material by name
+//! [materials.white]              # defines a material, or overrides one of an MTL file by name
 //! diffuse = [0.8, 0.8, 0.8]
 //! emission = [0.0, 0.0, 0.0]     # optional
 //! mirror = false                 # optional
@@ -15,7 +15,9 @@
 //! ior = 1.5                      # optional: glass's index of refraction
 //!
 //! [[mesh]]
-//! file = "bunny.obj"             # relative to this file; or builtin = "cornell"
+//! file = "bunny.obj"             # relative to this file; or builtin = "cornell" (the box of
+//!                                # scenes/cornell.toml) or "icosphere:N" (radius 1, 20·4^N faces)
+//! objects = ["body", "ears"]     # optional: only these objects (`o`/`g`) of the OBJ file
 //! material = "white"             # optional: every face gets this material
 //! scale = 1.0                    # optional
 //! translate = [0.0, 0.0, 0.0]    # optional
@@ -41,8 +43,8 @@
 //! Every number must be finite; colours (`diffuse`, `emission`, `intensity`) must also be
 //! non-negative, `fov_y` lie strictly between 0 and 180, and a quad light span some area: an
 //! error names the file and the material, light or camera field otherwise.
-use super::{check_color, check_finite, cornell, obj, CameraSpec, PointLight, Scene};
-use crate::error::{bail, err, Context, Result};
+use super::{check_color, check_finite, obj, procedural, CameraSpec, Files, PointLight, Scene};
+use crate::error::{bail, err, Result};
 use glam::Vec3;
 use kdray_shared::{Material, MAT_GLASS, MAT_MIRROR};
 use serde::Deserialize;
@@ -73,6 +75,7 @@ struct FileMaterial {
 struct FileMesh {
     file: Option<String>,
     builtin: Option<String>,
+    objects: Option<Vec<String>>,
     material: Option<String>,
     scale: Option<f32>,
     translate: Option<[f32; 3]>,
@@ -111,8 +114,15 @@ fn finite(name: &str, what: &str, v: [f32; 3]) -> Result<Vec3> {
 /// Loads the scene file at `path` (format in the module docs), named after the file's stem;
 /// mesh files are relative to its directory. Errors name the file, and the line where known.
 pub fn load_scene_file(path: &Path) -> Result<Scene> {
-    let name = path.display().to_string();
-    let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {name}"))?;
+    let dir = path.parent().unwrap_or(Path::new(""));
+    load_scene(Files::Dir(dir), Path::new(path.file_name().unwrap_or_default()))
+}
+
+/// Loads the scene file `path` of `files` (a folder's, or the built-in scenes'); its mesh files
+/// are read from `files` too.
+pub fn load_scene(files: Files, path: &Path) -> Result<Scene> {
+    let name = files.name(path);
+    let text = String::from_utf8(files.read(path)?).map_err(|_| err!(SceneFile(name, None): "not UTF-8 text"))?;
     let file: SceneFile = toml::from_str(&text).map_err(|e| {
         let msg = e.message().to_string();
         match e.span() {
@@ -123,9 +133,9 @@ pub fn load_scene_file(path: &Path) -> Result<Scene> {
             None => err!(SceneFile(name, None): "{msg}"),
         }
     })?;
-    let dir = path.parent().unwrap_or(Path::new("."));
     let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
     let mut scene = Scene::new(stem, CameraSpec::framing(Vec3::ZERO, Vec3::ONE));
+    let mut materials = Vec::new();
     for (mname, m) in &file.materials {
         let flags = if m.mirror.unwrap_or(false) { MAT_MIRROR } else { 0 }
             | if m.glass.unwrap_or(false) { MAT_GLASS } else { 0 };
@@ -136,6 +146,7 @@ pub fn load_scene_file(path: &Path) -> Result<Scene> {
             bail!(SceneFile(name, None): "material '{mname}' ior must be between 1 and 10, got {ior}");
         }
         scene.add_material(mname, Material { diffuse, flags, emission, ior });
+        materials.push((mname, Material { diffuse, flags, emission, ior }));
     }
     if file.mesh.is_empty() {
         bail!(SceneFile(name, None): "no [[mesh]] entries: the scene is empty");
@@ -154,10 +165,26 @@ pub fn load_scene_file(path: &Path) -> Result<Scene> {
         if !scale.is_finite() || scale == 0.0 {
             bail!(SceneFile(name, None): "mesh {}: scale must be finite and non-zero", i + 1);
         }
+        if m.objects.is_some() && m.file.is_none() {
+            bail!(SceneFile(name, None): "mesh {}: 'objects' selects objects of an OBJ 'file'", i + 1);
+        }
         match (&m.file, &m.builtin) {
-            (Some(f), None) => obj::add_obj(&mut scene, &dir.join(f), scale, translate, mat)?,
+            (Some(f), None) => obj::add_obj(&mut scene, files, &path.with_file_name(f), scale, translate, mat, m.objects.as_deref())?,
+            (None, Some(b)) if b.starts_with("icosphere:") => {
+                let n = b["icosphere:".len()..].parse::<u32>().ok().filter(|&n| n <= 8);
+                let Some(n) = n else { bail!(SceneFile(name, None): "mesh {}: use builtin = \"icosphere:N\" with N = 0..8 subdivisions", i + 1) };
+                let id = match mat {
+                    Some(id) => id,
+                    None => scene.add_material("default", Material { diffuse: [0.8; 3], ..Default::default() }),
+                };
+                let mut ball = procedural::sphere(1.0, n);
+                for v in &mut ball.v {
+                    *v = *v * scale + translate;
+                }
+                ball.into_scene(&mut scene, id, &format!("{name}: builtin {b}"))?;
+            }
             (None, Some(b)) if b == "cornell" => {
-                let c = cornell::cornell_box();
+                let c = super::load("cornell")?;
                 for t in &c.triangles {
                     let cm = &c.material_names[t.material as usize];
                     let id = mat.unwrap_or_else(|| scene.add_material(cm, c.materials[t.material as usize]));
@@ -168,9 +195,13 @@ pub fn load_scene_file(path: &Path) -> Result<Scene> {
                     scene.camera = c.camera.clone();
                 }
             }
-            (None, Some(b)) => bail!(SceneFile(name, None): "mesh {}: unknown builtin '{b}' (known: cornell)", i + 1),
+            (None, Some(b)) => bail!(SceneFile(name, None): "mesh {}: unknown builtin '{b}' (known: cornell, icosphere:N)", i + 1),
             _ => bail!(SceneFile(name, None): "mesh {}: give exactly one of 'file' or 'builtin'", i + 1),
         }
+    }
+    // The file's materials override those of its meshes' MTL files of the same name.
+    for (mname, m) in materials {
+        scene.add_material(mname, m);
     }
     for (i, l) in file.light.iter().enumerate() {
         let what = |field: &str| format!("light {} {field}", i + 1);

@@ -1,12 +1,12 @@
 //! Scenes: triangles with materials, lights and a camera, validated on the way in.
-pub mod cornell;
 pub mod file;
 pub mod mitsuba;
 pub mod obj;
 pub mod procedural;
 
-use crate::error::{bail, Result};
+use crate::error::{bail, Context, Result};
 use glam::Vec3;
+use std::path::Path;
 use kdray_shared::{Camera, Light, Material, Triangle, LIGHT_POINT, LIGHT_SPOT, LIGHT_TRIANGLE};
 
 /// Where the camera is and what it sees; turned into the GPU `Camera` for a given resolution.
@@ -473,14 +473,58 @@ impl CameraSpec {
     }
 }
 
-/// Loads a scene by name: a built-in one (`cornell`, `cornell-chair`, `chairs:K`,
-/// `conference`, `soup:N[:S]`), a `.obj` file or a `.toml` scene file.
+/// The scene files of the repository's `scenes/` folder that are built-in scenes, compiled in
+/// (`host/scenes` links to that folder, so the published crate carries them too).
+const BUILTIN_FILES: &[(&str, &str)] = &[
+    ("cornell.toml", include_str!("../../scenes/cornell.toml")),
+    ("cornell-mirror.toml", include_str!("../../scenes/cornell-mirror.toml")),
+    ("cornell-mirrors.toml", include_str!("../../scenes/cornell-mirrors.toml")),
+    ("cornell-glass.toml", include_str!("../../scenes/cornell-glass.toml")),
+    ("cornell.obj", include_str!("../../scenes/cornell.obj")),
+    ("cornell.mtl", include_str!("../../scenes/cornell.mtl")),
+];
+
+/// Where a scene file's own file references (meshes, `mtllib`) are read from: a folder, or the
+/// built-in copy of `scenes/`.
+#[derive(Copy, Clone, Debug)]
+pub enum Files<'a> {
+    /// Relative to this folder.
+    Dir(&'a Path),
+    /// The built-in scene files (`scenes/` as compiled in).
+    Builtin,
+}
+
+impl Files<'_> {
+    /// The name of `file` in messages: its path, or `scenes/…` (built in).
+    pub fn name(&self, file: &Path) -> String {
+        match self {
+            Files::Dir(d) => d.join(file).display().to_string(),
+            Files::Builtin => Path::new("scenes").join(file).display().to_string(),
+        }
+    }
+
+    /// The bytes of `file`.
+    pub fn read(&self, file: &Path) -> Result<Vec<u8>> {
+        match self {
+            Files::Dir(d) => std::fs::read(d.join(file)).with_context(|| format!("cannot read {}", self.name(file))),
+            Files::Builtin => match BUILTIN_FILES.iter().find(|(n, _)| Path::new(n) == file) {
+                Some((_, text)) => Ok(text.as_bytes().to_vec()),
+                None => bail!(Scene: "{}: not a built-in scene file", self.name(file)),
+            },
+        }
+    }
+}
+
+/// The built-in scenes that are scene files in `scenes/` (`NAME.toml`, compiled in).
+pub const FILE_SCENES: &[&str] = &["cornell", "cornell-mirror", "cornell-mirrors", "cornell-glass"];
+
+/// Loads a scene by name: a built-in one (`cornell`, `cornell-mirror`, `cornell-mirrors`,
+/// `cornell-glass` — the scene files of `scenes/`, compiled in — and the generated
+/// `cornell-chair`, `chairs:K`, `conference`, `soup:N[:S]`), a `.obj` file or a `.toml` scene
+/// file.
 pub fn load(spec: &str) -> Result<Scene> {
     let scene = match spec {
-        "cornell" => cornell::cornell_box(),
-        "cornell-mirror" => cornell::cornell_mirror(),
-        "cornell-mirrors" => cornell::cornell_mirrors(),
-        "cornell-glass" => cornell::cornell_glass(),
+        s if FILE_SCENES.contains(&s) => file::load_scene(Files::Builtin, Path::new(&format!("{s}.toml")))?,
         "cornell-chair" => procedural::cornell_chair()?,
         "conference" => procedural::conference()?,
         s if s.starts_with("chairs:") => match s["chairs:".len()..].parse::<u32>() {
@@ -495,8 +539,8 @@ pub fn load(spec: &str) -> Result<Scene> {
                 _ => bail!(Scene: "'{s}': use soup:N or soup:N:S (N random triangles of size S in the unit cube)"),
             }
         }
-        s if s.ends_with(".obj") => in_file(s, obj::load_obj_scene(std::path::Path::new(s)))?,
-        s if s.ends_with(".toml") => in_file(s, file::load_scene_file(std::path::Path::new(s)))?,
+        s if s.ends_with(".obj") => in_file(s, obj::load_obj_scene(Path::new(s)))?,
+        s if s.ends_with(".toml") => in_file(s, file::load_scene_file(Path::new(s)))?,
         s => bail!(Scene: "unknown scene '{s}': use cornell, cornell-mirror, cornell-mirrors, cornell-glass, cornell-chair, chairs:K, conference, soup:N[:S], a .obj file or a .toml scene file"),
     };
     in_file(spec, scene.validate().map(|_| scene))

@@ -1,7 +1,7 @@
 //! Wavefront OBJ/MTL input through `tobj`, with a line-by-line validation pass first so that a
 //! malformed file is reported as one line naming the file and the offending line.
-use super::{CameraSpec, PointLight, Scene};
-use crate::error::{bail, err, Context, Result};
+use super::{CameraSpec, Files, PointLight, Scene};
+use crate::error::{bail, err, Result};
 use glam::Vec3;
 use kdray_shared::{Material, MAT_GLASS, MAT_MIRROR};
 use std::path::Path;
@@ -97,25 +97,30 @@ pub fn validate_mtl_text(name: &str, text: &str) -> Result<()> {
 }
 
 /// Validates the MTL files an OBJ file names (`mtllib`, resolved as tobj does: relative to
-/// the OBJ file's directory). Files that cannot be read are left to tobj (a warning).
-fn validate_mtllibs(path: &Path, text: &str) -> Result<()> {
+/// the OBJ file's directory). Files that cannot be read are left to the loader (a warning).
+fn validate_mtllibs(files: Files, obj: &Path, text: &str) -> Result<()> {
     for raw in text.lines() {
         let line = raw.trim();
         if line.split_whitespace().next() != Some("mtllib") {
             continue;
         }
         let file = line.split_once(' ').unwrap_or_default().1.trim();
-        let mtl = match path.parent() {
-            Some(dir) => dir.join(file),
-            None => Path::new(file).to_path_buf(),
-        };
+        let mtl = beside(obj, Path::new(file));
         // Lossily: tobj reads the lines before a byte that is not UTF-8, so those must be
         // checked too (found by tests/fuzz.rs).
-        if let Ok(bytes) = std::fs::read(&mtl) {
-            validate_mtl_text(&mtl.display().to_string(), &String::from_utf8_lossy(&bytes))?;
+        if let Ok(bytes) = files.read(&mtl) {
+            validate_mtl_text(&files.name(&mtl), &String::from_utf8_lossy(&bytes))?;
         }
     }
     Ok(())
+}
+
+/// `file` named in `obj` (an `mtllib`): relative to the OBJ file's directory.
+fn beside(obj: &Path, file: &Path) -> std::path::PathBuf {
+    match obj.parent() {
+        Some(dir) => dir.join(file),
+        None => file.to_path_buf(),
+    }
 }
 
 /// A material from an MTL entry; `name` (the OBJ file) is for errors that `validate_mtl_text`
@@ -138,21 +143,37 @@ fn material_from_mtl(name: &str, m: &tobj::Material) -> Result<Material> {
     Ok(Material { diffuse, flags, emission, ior })
 }
 
-/// Adds the meshes of an OBJ file to `scene`, transformed by `scale` then `translate`.
+/// Which objects (`o`/`g` names) of an OBJ file to add, in the file's order: all, or those named.
+pub type Objects<'a> = Option<&'a [String]>;
+
+/// Adds the meshes of the OBJ file `path` (read through `files`) to `scene`, transformed by
+/// `scale` then `translate`; only the `objects` named, if given (each must exist).
 /// `material_override` replaces every face's material.
 pub fn add_obj(
     scene: &mut Scene,
+    files: Files,
     path: &Path,
     scale: f32,
     translate: Vec3,
     material_override: Option<u32>,
+    objects: Objects,
 ) -> Result<()> {
-    let name = path.display().to_string();
-    let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {name}"))?;
+    let name = files.name(path);
+    let bytes = files.read(path)?;
+    let text = String::from_utf8(bytes).map_err(|_| err!(SceneFile(name, None): "not UTF-8 text"))?;
     validate_obj_text(&name, &text)?;
-    validate_mtllibs(path, &text)?;
+    validate_mtllibs(files, path, &text)?;
     let opts = tobj::LoadOptions { triangulate: true, single_index: true, ..Default::default() };
-    let (models, mtls) = tobj::load_obj(path, &opts).map_err(|e| err!(SceneFile(name, None): "{e}"))?;
+    let (models, mtls) = tobj::load_obj_buf(&mut text.as_bytes(), &opts, |mtl| match files.read(&beside(path, mtl)) {
+        Ok(b) => tobj::load_mtl_buf(&mut b.as_slice()),
+        Err(_) => Err(tobj::LoadError::OpenFileFailed),
+    })
+    .map_err(|e| err!(SceneFile(name, None): "{e}"))?;
+    if let Some(wanted) = objects {
+        if let Some(o) = wanted.iter().find(|o| !models.iter().any(|m| &m.name == *o)) {
+            bail!(SceneFile(name, None): "no object '{o}' (objects: {})", models.iter().map(|m| m.name.as_str()).collect::<Vec<_>>().join(", "));
+        }
+    }
     // A missing or broken .mtl is not fatal: faces fall back to the default material.
     let mtls = mtls.unwrap_or_else(|e| {
         scene.warnings.push(format!("{name}: materials not loaded ({e}); using a grey default"));
@@ -166,6 +187,9 @@ pub fn add_obj(
     }
     let mut face_no = 0usize;
     for model in &models {
+        if objects.is_some_and(|o| !o.contains(&model.name)) {
+            continue;
+        }
         let mesh = &model.mesh;
         let mat = material_override
             .or_else(|| mesh.material_id.and_then(|i| mtl_ids.get(i).copied()))
@@ -193,7 +217,9 @@ pub fn add_obj(
 pub fn load_obj_scene(path: &Path) -> Result<Scene> {
     let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
     let mut scene = Scene::new(stem, CameraSpec::framing(Vec3::ZERO, Vec3::ONE));
-    add_obj(&mut scene, path, 1.0, Vec3::ZERO, None)?;
+    let dir = path.parent().unwrap_or(Path::new(""));
+    let file = Path::new(path.file_name().unwrap_or_default());
+    add_obj(&mut scene, Files::Dir(dir), file, 1.0, Vec3::ZERO, None, None)?;
     let (lo, hi) = scene.bounds();
     scene.camera = CameraSpec::framing(lo, hi);
     let d = (scene.camera.eye - scene.camera.look_at).length();

@@ -3,7 +3,7 @@
 //! Cornell box with a chair, and a conference room of about 280 000 triangles standing in for
 //! Greg Ward's Conference scene, and `soup:N` (random triangles). All closed meshes are built
 //! from shared vertex positions.
-use super::{cornell, CameraSpec, PointLight, Scene};
+use super::{CameraSpec, PointLight, Scene};
 use crate::error::{bail, Result};
 use glam::{Mat3, Vec3};
 use kdray_shared::Material;
@@ -148,7 +148,7 @@ pub fn chairs(k: u32) -> Result<Scene> {
 
 /// The Cornell box with a chair (scaled ×300) in place of the two blocks.
 pub fn cornell_chair() -> Result<Scene> {
-    let base = cornell::cornell_box();
+    let base = super::load("cornell")?;
     let mut s = Scene::new("cornell-chair", base.camera.clone());
     for (name, m) in base.material_names.iter().zip(&base.materials) {
         s.add_material(name, *m);
