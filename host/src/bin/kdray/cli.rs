@@ -134,7 +134,8 @@ pub enum Command {
     /// Render a scene to PNG (and PFM, linear HDR): progressive photon mapping by default,
     /// path tracing or direct lighting on request.
     Render {
-        /// `cornell` (built in), a .obj file or a .toml scene file.
+        /// A built-in scene (`cornell`, `cornell-glass`, … — see the README), a .obj file or a
+        /// .toml scene file.
         #[arg(long, default_value = "cornell")]
         scene: String,
         /// Where to trace: gpu, gpu:N (adapter N of `kdray adapters`) or cpu; default: the
