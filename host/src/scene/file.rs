@@ -145,8 +145,9 @@ pub fn load_scene(files: Files, path: &Path) -> Result<Scene> {
         if !(ior.is_finite() && ior >= 1.0 && ior <= 10.0) {
             bail!(SceneFile(name, None): "material '{mname}' ior must be between 1 and 10, got {ior}");
         }
-        scene.add_material(mname, Material { diffuse, flags, emission, ior });
-        materials.push((mname, Material { diffuse, flags, emission, ior }));
+        let material = Material { diffuse, flags, emission, ior };
+        scene.add_material(mname, material);
+        materials.push((mname, material));
     }
     if file.mesh.is_empty() {
         bail!(SceneFile(name, None): "no [[mesh]] entries: the scene is empty");
