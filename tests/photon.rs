@@ -534,3 +534,112 @@ fn bvh_traces_the_photons_and_paths_of_the_kd_tree() {
         }
     }
 }
+
+/// A runtime that works like the native one until its `fail_at`-th submission, then fails
+/// every call, as a lost device would (#11 item 4: a failure mid-render keeps what is done).
+struct LostAfter {
+    fail_at: u32,
+    submits: std::sync::atomic::AtomicU32,
+}
+
+impl LostAfter {
+    fn lost(&self) -> kdray::Result<()> {
+        if self.submits.load(std::sync::atomic::Ordering::SeqCst) >= self.fail_at {
+            return Err(kdray::Error::DeviceLost("injected by the test".into()));
+        }
+        Ok(())
+    }
+}
+
+impl Runtime for LostAfter {
+    fn name(&self) -> String {
+        NATIVE.name()
+    }
+    fn is_native(&self) -> bool {
+        true
+    }
+    fn is_software(&self) -> bool {
+        false
+    }
+    fn max_binding(&self) -> u64 {
+        NATIVE.max_binding()
+    }
+    fn alloc_raw(&self, label: &str, bytes: u64) -> kdray::Result<kdray::runtime::RawBuffer> {
+        self.lost()?;
+        NATIVE.alloc_raw(label, bytes)
+    }
+    fn write_raw(&self, buf: &kdray::runtime::RawBuffer, data: &[u8]) -> kdray::Result<()> {
+        self.lost()?;
+        NATIVE.write_raw(buf, data)
+    }
+    fn begin(&self) -> kdray::runtime::Commands {
+        NATIVE.begin()
+    }
+    fn clear(&self, c: &mut kdray::runtime::Commands, buf: &kdray::runtime::RawBuffer) -> kdray::Result<()> {
+        self.lost()?;
+        NATIVE.clear(c, buf)
+    }
+    fn dispatch(&self, c: &mut kdray::runtime::Commands, k: &dyn kdray::runtime::Kernel) -> kdray::Result<()> {
+        self.lost()?;
+        NATIVE.dispatch(c, k)
+    }
+    fn dispatch_indirect(&self, c: &mut kdray::runtime::Commands, k: &dyn kdray::runtime::Kernel, args: &kdray::runtime::Buffer<[u32; 3]>, index: usize) -> kdray::Result<()> {
+        self.lost()?;
+        NATIVE.dispatch_indirect(c, k, args, index)
+    }
+    fn read_back(&self, c: &mut kdray::runtime::Commands, buf: &kdray::runtime::RawBuffer, bytes: u64) -> kdray::Result<kdray::runtime::Pending> {
+        self.lost()?;
+        NATIVE.read_back(c, buf, bytes)
+    }
+    fn submit(&self, c: kdray::runtime::Commands) -> kdray::Result<()> {
+        self.lost()?;
+        self.submits.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+        NATIVE.submit(c)
+    }
+    fn wait(&self, p: kdray::runtime::Pending) -> kdray::Result<Vec<u32>> {
+        self.lost()?;
+        NATIVE.wait(p)
+    }
+    fn finish(&self) -> kdray::Result<()> {
+        self.lost()?;
+        NATIVE.finish()
+    }
+}
+
+/// A device lost in the middle of a render: the passes before the last checkpoint come back
+/// as the image (the same image as a render of that many passes), with the error beside it;
+/// lost before the first checkpoint, the render is an error.
+#[test]
+fn a_render_whose_device_is_lost_returns_the_passes_before_it() {
+    let s = scene::load("cornell").unwrap();
+    let tr = tree(&s);
+    let cam = s.camera.to_pod(24, 24);
+    let accel = Accel::kd(Algorithm::ShortStack(3));
+    let options = |passes| PhotonOptions { photons: 1 << 12, passes, checkpoint_seconds: 0.0, ..Default::default() };
+    let render = |rt: &dyn Runtime, passes| {
+        let t = Tracer::new(rt, &s, Some(&tr)).unwrap();
+        let mut map = PhotonMap::new(&t, accel, Some(&tr), s.surface_area(), options(passes)).unwrap();
+        pm::render(&mut map, &cam, &())
+    };
+    // Submissions of the set-up and of each pass, counted on a runtime that never fails.
+    let count = |passes| {
+        let rt = LostAfter { fail_at: u32::MAX, submits: 0.into() };
+        render(&rt, passes).unwrap();
+        rt.submits.into_inner()
+    };
+    // Lost in the fourth pass, after its first submission (the photons traced).
+    let rt = LostAfter { fail_at: count(3) + 1, submits: 0.into() };
+    let (img, stats) = render(&rt, 8).expect("the passes before the loss come back");
+    let why = stats.interrupted.expect("the render says it was interrupted");
+    assert!(why.contains("pass 3 failed") && why.contains("GPU device lost: injected"), "{why}");
+    assert_eq!(stats.passes, 3);
+    let (three_passes, s3) = render(&NATIVE, 3).unwrap();
+    assert!(img.radiance == three_passes.radiance && img.hits == three_passes.hits, "the image is that of the three passes done");
+    assert_eq!((stats.emitted, stats.stored), (s3.emitted, s3.stored));
+    // Lost in the first pass, after its first submission: nothing to return. (A pass and its
+    // checkpoint take count(2) - count(1) submissions, so the set-up takes count(1) less that.)
+    let (one, two) = (count(1), count(2));
+    let rt = LostAfter { fail_at: one - (two - one) + 1, submits: 0.into() };
+    let e = render(&rt, 8).err().expect("an error");
+    assert!(matches!(e.kind(), kdray::Error::DeviceLost(_)), "{e}");
+}

@@ -84,6 +84,10 @@ pub struct PhotonOptions {
     pub passes: u32,
     /// Stop after the pass that ends past this many seconds.
     pub time_limit: Option<f64>,
+    /// Seconds between checkpoints: after a pass that ends this long after the last one, the
+    /// film is read back, so that a pass that fails (a lost device, say) loses only the passes
+    /// since (`PhotonStats::interrupted`). 0: after every pass.
+    pub checkpoint_seconds: f64,
     /// The first pass's gather radius (scene units); default: about 50 photons per gather.
     pub radius: Option<f32>,
     /// The caustic map's radius relative to the global map's.
@@ -124,6 +128,7 @@ impl Default for PhotonOptions {
             photons: 1 << 20,
             passes: 16,
             time_limit: None,
+            checkpoint_seconds: 1.0,
             radius: None,
             caustic_radius: 0.5,
             alpha: 2.0 / 3.0,
@@ -155,6 +160,9 @@ pub struct PhotonStats {
     pub last_radius: f32,
     /// Wall time from the first pass to the image read back, in seconds.
     pub seconds: f64,
+    /// Why the render stopped early, if a pass failed after a checkpoint: the image is that of
+    /// the `passes` before it (the last checkpoint), and `error` says what failed.
+    pub interrupted: Option<String>,
 }
 
 /// The seed of pass `pass`.
@@ -632,9 +640,12 @@ fn record_eye<'a>(c: &mut crate::runtime::Commands, map: &'a PhotonMap, p: &Rend
 }
 
 /// Renders `cam`'s image by progressive photon mapping; `progress` counts passes.
+///
+/// The film is read back at checkpoints (`PhotonOptions::checkpoint_seconds`). If a pass fails
+/// after one, the render returns the image of the passes up to it, with the error in
+/// `PhotonStats::interrupted`; a failure before the first checkpoint is an error.
 pub fn render(map: &mut PhotonMap, cam: &Camera, progress: &dyn Progress) -> Result<(RenderOutput, PhotonStats)> {
     let t = map.t;
-    let rt = t.rt;
     let accel = map.accel;
     let n = (cam.width * cam.height) as usize;
     let e = map.o.eye_samples as usize;
@@ -644,15 +655,24 @@ pub fn render(map: &mut PhotonMap, cam: &Camera, progress: &dyn Progress) -> Res
     progress.start(map.o.passes as u64);
     let start = Instant::now();
     let mut stats = PhotonStats::default();
-    for pass in 0..map.o.passes {
-        let stored = map.trace_and_index(pass)?;
-        let mut c = rt.begin();
-        for (&(first, count), fb) in batches.iter().zip(&fbs) {
-            let p = eye_params(t, cam, &map.o, first, count, pass);
-            record_eye(&mut c, map, &p, pass, fb)?;
-            rt.dispatch(&mut c, &Film { params: p, paths: &fb.paths, radiance: &fb.radiance })?;
+    // The last checkpoint: its image and statistics, and when it was taken.
+    let mut saved: Option<(RenderOutput, PhotonStats)> = None;
+    let mut saved_at = 0.0;
+    // A failure: the last checkpoint with what failed, or the error if there is none.
+    let fail = |saved: Option<(RenderOutput, PhotonStats)>, what: String, e: crate::Error| match saved {
+        Some((out, mut st)) => {
+            st.interrupted = Some(format!("{what}: {e}"));
+            st.seconds = start.elapsed().as_secs_f64();
+            Ok((out, st))
         }
-        rt.submit(c)?;
+        None => Err(e),
+    };
+    for pass in 0..map.o.passes {
+        let last = pass + 1 == map.o.passes;
+        let stored = match render_pass(map, cam, pass, &batches, &fbs) {
+            Ok(stored) => stored,
+            Err(e) => return fail(saved, format!("pass {pass} failed"), e),
+        };
         stats.passes += 1;
         stats.emitted += map.o.photons as u64;
         stats.stored += stored as u64;
@@ -660,21 +680,55 @@ pub fn render(map: &mut PhotonMap, cam: &Camera, progress: &dyn Progress) -> Res
         progress.advance(1);
         let secs = start.elapsed().as_secs_f64();
         progress.status(&format!("{:.1} M photons/s", stats.emitted as f64 / secs / 1e6));
-        if map.o.time_limit.is_some_and(|l| secs >= l) {
+        let done = last || map.o.time_limit.is_some_and(|l| secs >= l);
+        if !done && secs - saved_at >= map.o.checkpoint_seconds {
+            match read_film(t, cam, &batches, &fbs) {
+                Ok(out) => saved = Some((out, stats.clone())),
+                Err(e) => return fail(saved, format!("reading back the image after pass {pass} failed"), e),
+            }
+            saved_at = secs;
+        }
+        if done {
             break;
         }
     }
+    match read_film(t, cam, &batches, &fbs) {
+        Ok(out) => {
+            stats.seconds = start.elapsed().as_secs_f64();
+            Ok((out, stats))
+        }
+        Err(e) => fail(saved, "reading back the image failed".into(), e),
+    }
+}
+
+/// One pass: photons traced and indexed, then every batch's eye samples gathered into its
+/// film. Returns the photons stored.
+fn render_pass(map: &mut PhotonMap, cam: &Camera, pass: u32, batches: &[(usize, usize)], fbs: &[FrameBuffers]) -> Result<u32> {
+    let (t, rt) = (map.t, map.t.rt);
+    let stored = map.trace_and_index(pass)?;
+    let mut c = rt.begin();
+    for (&(first, count), fb) in batches.iter().zip(fbs) {
+        let p = eye_params(t, cam, &map.o, first, count, pass);
+        record_eye(&mut c, map, &p, pass, fb)?;
+        rt.dispatch(&mut c, &Film { params: p, paths: &fb.paths, radiance: &fb.radiance })?;
+    }
+    rt.submit(c)?;
+    Ok(stored)
+}
+
+/// The image so far: every batch's primary hits and film, read back.
+fn read_film(t: &Tracer, cam: &Camera, batches: &[(usize, usize)], fbs: &[FrameBuffers]) -> Result<RenderOutput> {
+    let rt = t.rt;
     let mut out = RenderOutput::new(cam.width, cam.height);
     let mut c = rt.begin();
     let pending: Vec<_> = batches
         .iter()
-        .zip(&fbs)
+        .zip(fbs)
         .map(|(&(_, count), fb)| Ok((rt.read_back_of(&mut c, &fb.primary_hits, count)?, rt.read_back_of(&mut c, &fb.radiance, count)?)))
         .collect::<Result<_>>()?;
     rt.submit(c)?;
     for ((first, _), (h, r)) in batches.iter().zip(pending) {
         path::place(&mut out, cam, *first, cast(rt.wait(h)?), cast(rt.wait(r)?));
     }
-    stats.seconds = start.elapsed().as_secs_f64();
-    Ok((out, stats))
+    Ok(out)
 }

@@ -517,14 +517,16 @@ pub fn run(cli: Cli) -> Result<()> {
                 Some(g) => g,
                 None => &NATIVE,
             };
-            let render = |rt: &dyn Runtime| -> Result<kdray::RenderOutput> {
+            // The image, and why it holds fewer passes than asked (a pass failed after a
+            // checkpoint), if it does.
+            let render = |rt: &dyn Runtime| -> Result<(kdray::RenderOutput, Option<String>)> {
                 let mut t = Tracer::new(rt, &scene, tree)?;
                 if let Some(b) = &bvh {
                     t = t.with_bvh(b)?;
                 }
                 println!("device: {}, traversal {}", t.device_name(), accel.name());
                 let start = Instant::now();
-                let r = match integrator {
+                let (r, interrupted) = match integrator {
                     IntegratorArg::Direct | IntegratorArg::Path => {
                         let mut o = if integrator == IntegratorArg::Direct {
                             PathOptions::direct(seed, bounces)
@@ -535,7 +537,7 @@ pub fn run(cli: Cli) -> Result<()> {
                         let pb = progress("render");
                         let r = path::render(&t, accel, &cam, &o, &Bar(pb.clone()))?;
                         pb.finish_and_clear();
-                        r
+                        (r, None)
                     }
                     IntegratorArg::Photon => {
                         let o = PhotonOptions {
@@ -566,6 +568,7 @@ pub fn run(cli: Cli) -> Result<()> {
                             eye_bounces: bounces,
                             eye_samples: spp,
                             seed,
+                            ..Default::default()
                         };
                         let mut map = PhotonMap::new(&t, accel, tree, scene.surface_area(), o)?;
                         let pb = progress_passes();
@@ -580,7 +583,7 @@ pub fn run(cli: Cli) -> Result<()> {
                             s.last_radius,
                             s.emitted as f64 / s.seconds / 1e6
                         );
-                        r
+                        (r, s.interrupted.map(|e| format!("{e}; the image holds the {} passes before it", s.passes)))
                     }
                 };
                 let secs = start.elapsed().as_secs_f64();
@@ -589,9 +592,9 @@ pub fn run(cli: Cli) -> Result<()> {
                     secs,
                     (size * size) as f64 / secs / 1e6
                 );
-                Ok(r)
+                Ok((r, interrupted))
             };
-            let img = render(rt)?;
+            let (img, interrupted) = render(rt)?;
             write_png(&img, exposure, &out)?;
             println!("wrote {}", out.display());
             if integrator != IntegratorArg::Direct {
@@ -606,12 +609,15 @@ pub fn run(cli: Cli) -> Result<()> {
                 if gpu.is_none() {
                     bail!("--compare needs a GPU adapter");
                 }
-                let other = render(&NATIVE)?;
+                let (other, _) = render(&NATIVE)?;
                 let stem = out.with_extension("");
                 let cpu_path = PathBuf::from(format!("{}-cpu.png", stem.display()));
                 write_png(&other, exposure, &cpu_path)?;
                 println!("wrote {}", cpu_path.display());
                 println!("GPU vs CPU: {}", compare(&img, &other, exposure));
+            }
+            if let Some(e) = interrupted {
+                bail!("{e}");
             }
             Ok(())
         }
