@@ -160,8 +160,8 @@ pub struct PhotonStats {
     pub last_radius: f32,
     /// Wall time from the first pass to the image read back, in seconds.
     pub seconds: f64,
-    /// Why the render stopped early, if a pass failed after a checkpoint: the image is that of
-    /// the `passes` before it (the last checkpoint), and `error` says what failed.
+    /// Why the render stopped early, if a pass failed after a checkpoint: what failed, and
+    /// how. The image is then the last checkpoint's, of the `passes` before the failure.
     pub interrupted: Option<String>,
 }
 
