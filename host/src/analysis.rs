@@ -66,7 +66,7 @@ pub fn counts(tris: &[Triangle], tree: &KdTreeData, accel: Accel, rays: &[Ray], 
 /// Traversal counters of the wide BVH (closest hit if `closest`, else any hit), one per group
 /// of four rays in order (summed over the four), like `counts`.
 pub fn bvh_counts(bvh: &crate::bvh::BvhData, rays: &[Ray], closest: bool) -> Vec<Counters> {
-    let b = kdray_shared::bvh::Bvh { nodes: &bvh.nodes, tris: &bvh.tris };
+    let b = kdray_shared::bvh::Bvh { nodes: &bvh.nodes, tris: kdray_shared::bvh::TriWords::cast(&bvh.tris) };
     rays.par_chunks(PACKET)
         .map(|c| {
             let mut s = Counters::default();

@@ -12,7 +12,7 @@ use kdray_shared::kdtree::{KdNode, KdTree, LeafRef, PacketTraversal, Traversal, 
 use kdray_shared::query::{AnyHit, Answer, Closest, Query};
 use kdray_shared::brute::BruteForce;
 use kdray_shared::aabb::Aabb;
-use kdray_shared::bvh::{Bvh, BvhNode};
+use kdray_shared::bvh::{Bvh, BvhNode, TriWords};
 use kdray_shared::trace::{self, Brute, Kd, Method, Wide};
 use kdray_shared::photon::{self, HashGrid, KdCells};
 use kdray_shared::{
@@ -101,7 +101,7 @@ impl<'a> View<'a> for Bvh<'a> {
     unsafe fn view(s: &SceneBinds<'a>, _bounds: Aabb) -> Self {
         match s.structure {
             // SAFETY: the caller's contract.
-            StructureBinds::Bvh { nodes, tris } => unsafe { Bvh { nodes: nodes.host(), tris: tris.host() } },
+            StructureBinds::Bvh { nodes, tris } => unsafe { Bvh { nodes: nodes.host(), tris: TriWords::cast(tris.host()) } },
             StructureBinds::Kd { .. } => panic!("a BVH kernel bound to a kd-tree"),
         }
     }

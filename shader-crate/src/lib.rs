@@ -44,7 +44,7 @@ pub fn kd_view<'a>(bounds: kdray_shared::aabb::Aabb, tris: &'a [kdray_shared::Tr
 /// The wide BVH as the whole-path kernels see it (its nodes and leaf-ordered triangles; the
 /// scene's box and triangles are not part of it).
 #[inline(always)]
-pub fn bvh_view<'a>(_bounds: kdray_shared::aabb::Aabb, _tris: &'a [kdray_shared::Triangle], bvh: &'a [kdray_shared::bvh::BvhNode], bvh_tris: &'a [kdray_shared::Triangle]) -> kdray_shared::bvh::Bvh<'a> {
+pub fn bvh_view<'a>(_bounds: kdray_shared::aabb::Aabb, _tris: &'a [kdray_shared::Triangle], bvh: &'a [kdray_shared::bvh::BvhNode], bvh_tris: &'a [kdray_shared::bvh::TriWords]) -> kdray_shared::bvh::Bvh<'a> {
     kdray_shared::bvh::Bvh { nodes: bvh, tris: bvh_tris }
 }
 

@@ -4,7 +4,7 @@
 //! leaves).
 use crate::Atomics;
 use kdray_shared::aabb::Aabb;
-use kdray_shared::bvh::BvhNode;
+use kdray_shared::bvh::{BvhNode, TriWords};
 use kdray_shared::kdtree::{Full, KdNode, Short};
 use kdray_shared::trace::{Brute, Kd, Wide};
 use kdray_shared::photon::{self, HashGrid, KdCells};
@@ -136,4 +136,4 @@ macro_rules! photon_paths {
 photon_paths!(photon_paths_brute, Brute, nodes: KdNode, prims: u32, kd_view);
 photon_paths!(photon_paths_stack, Kd<Full>, nodes: KdNode, prims: u32, kd_view);
 photon_paths!(photon_paths_shortstack3, Kd<Short<3>>, nodes: KdNode, prims: u32, kd_view);
-photon_paths!(photon_paths_bvh, Wide, bvh: BvhNode, bvh_tris: Triangle, bvh_view);
+photon_paths!(photon_paths_bvh, Wide, bvh: BvhNode, bvh_tris: TriWords, bvh_view);

@@ -1,6 +1,6 @@
 //! The eye-path entry points (`kdray_shared::render`).
 use kdray_shared::aabb::Aabb;
-use kdray_shared::bvh::BvhNode;
+use kdray_shared::bvh::{BvhNode, TriWords};
 use kdray_shared::kdtree::{Full, KdNode, Short};
 use kdray_shared::render;
 use kdray_shared::trace::{Brute, Kd, Wide};
@@ -111,4 +111,4 @@ macro_rules! eye_paths {
 eye_paths!(eye_paths_brute, Brute, nodes: KdNode, prims: u32, kd_view);
 eye_paths!(eye_paths_stack, Kd<Full>, nodes: KdNode, prims: u32, kd_view);
 eye_paths!(eye_paths_shortstack3, Kd<Short<3>>, nodes: KdNode, prims: u32, kd_view);
-eye_paths!(eye_paths_bvh, Wide, bvh: BvhNode, bvh_tris: Triangle, bvh_view);
+eye_paths!(eye_paths_bvh, Wide, bvh: BvhNode, bvh_tris: TriWords, bvh_view);

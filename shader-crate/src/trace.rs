@@ -7,7 +7,7 @@
 //! SPIR-V otherwise), the other kernels the same.
 use kdray_shared::kdtree::{Full, KdNode, LeafRef, PushDown, Restart, Short};
 use kdray_shared::query::{AnyHit, Closest};
-use kdray_shared::bvh::{Bvh, BvhNode};
+use kdray_shared::bvh::{Bvh, BvhNode, TriWords};
 use kdray_shared::trace::{self, Brute, Kd, Wide};
 use kdray_shared::{Hit, Ray, TraceParams, Triangle};
 use spirv_std::glam::UVec3;
@@ -42,7 +42,7 @@ macro_rules! bvh_kernel {
             #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &TraceParams,
             #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[Ray],
             #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] bvh: &[BvhNode],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] bvh_tris: &[Triangle],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] bvh_tris: &[TriWords],
             #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] out: &mut [$out],
         ) {
             trace::trace::<Wide, $query, _>(crate::item(id, groups), params, rays, &Bvh { nodes: bvh, tris: bvh_tris }, out);

@@ -38,6 +38,7 @@ use crate::triangle::ShearedRay;
 use crate::kernel::at;
 use crate::math::fma;
 use bytemuck::{Pod, Zeroable};
+use core::mem::MaybeUninit;
 use glam::UVec4;
 
 /// Children per node.
@@ -144,14 +145,42 @@ pub fn meta_is_node(m: u32) -> bool {
     m & 0b11000 == 0b11000
 }
 
+/// A `Triangle` as three 16-byte words (the same 48 bytes), so that a kernel loads it in three
+/// vector accesses rather than twelve scalar ones: v0 and `material`, v1 and `face`, v2 and
+/// `_pad`, each vertex as `f32` bits.
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct TriWords {
+    /// v0 (x, y, z bits) and `material`.
+    pub a: UVec4,
+    /// v1 and `face`.
+    pub b: UVec4,
+    /// v2 and `_pad`.
+    pub c: UVec4,
+}
+
+impl TriWords {
+    /// The triangle these words hold.
+    #[inline(always)]
+    pub fn triangle(&self) -> Triangle {
+        let v = |w: UVec4| [f32::from_bits(w.x), f32::from_bits(w.y), f32::from_bits(w.z)];
+        Triangle { v0: v(self.a), material: self.a.w, v1: v(self.b), face: self.b.w, v2: v(self.c), _pad: self.c.w }
+    }
+    /// Triangles seen as words (the same bytes).
+    pub fn cast(tris: &[Triangle]) -> &[TriWords] {
+        bytemuck::cast_slice(tris)
+    }
+}
+
 /// The tree: `nodes[0]` is the root; `tris` are the scene's triangles in leaf order, each with
 /// its index in the scene in `Triangle::_pad` (the `Hit::prim` reported).
 #[derive(Copy, Clone)]
 pub struct Bvh<'a> {
     /// The nodes; `nodes[0]` is the root.
     pub nodes: &'a [BvhNode],
-    /// The triangles in leaf order; `_pad` holds each one's index in the scene.
-    pub tris: &'a [Triangle],
+    /// The triangles in leaf order (as words: `TriWords::cast`); `_pad` holds each one's index
+    /// in the scene.
+    pub tris: &'a [TriWords],
 }
 
 /// Ray `ray`'s constants for the child box tests.
@@ -232,13 +261,23 @@ fn fast_children(node: &BvhNode, r: &BoxRay, adj_inv: [f32; 3], adj_o: [f32; 3],
     let (nx, fx) = pick((node.lo_x_y.x, node.lo_x_y.y), (node.lo_z_hi_x.z, node.lo_z_hi_x.w), r.neg[0]);
     let (ny, fy) = pick((node.lo_x_y.z, node.lo_x_y.w), (node.hi_y_z.x, node.hi_y_z.y), r.neg[1]);
     let (nz, fz) = pick((node.lo_z_hi_x.x, node.lo_z_hi_x.y), (node.hi_y_z.z, node.hi_y_z.w), r.neg[2]);
-    let (m0, m1) = (node.bases_meta.z, node.bases_meta.w);
+    // `child_bits` of four slots at once (Ylitie et al.'s packed form): per meta byte, its hit
+    // bit's position (a node's slot mirrored by the octant) and its bits' count.
+    let oct4 = r.oct_inv * 0x0101_0101;
+    let packed = |m: u32| {
+        let inner = ((m & (m << 1)) & 0x1010_1010) >> 4;
+        ((m ^ (oct4 & (inner * 0xff))) & 0x1f1f_1f1f, (m >> 5) & 0x0707_0707)
+    };
+    let (pos0, cnt0) = packed(node.bases_meta.z);
+    let (pos1, cnt1) = packed(node.bases_meta.w);
     let child = |s: u32| -> u32 {
         let b = |w: (u32, u32)| byte_of(w.0, w.1, s) as f32;
         let near = fma(b(nx), adj_inv[0], adj_o[0]).max(fma(b(ny), adj_inv[1], adj_o[1])).max(fma(b(nz), adj_inv[2], adj_o[2])).max(t_min);
         let far = fma(b(fx), adj_inv[0], adj_o[0]).min(fma(b(fy), adj_inv[1], adj_o[1])).min(fma(b(fz), adj_inv[2], adj_o[2])).min(t_max);
         if near <= far + slack {
-            child_bits(byte_of(m0, m1, s), r.oct_inv)
+            let sh = (s & 3) * 8;
+            let (pos, cnt) = if s < 4 { (pos0, cnt0) } else { (pos1, cnt1) };
+            ((cnt >> sh) & 7) << ((pos >> sh) & 0x1f)
         } else {
             0
         }
@@ -280,7 +319,8 @@ pub fn traverse<Q: Query, S: Stats>(bvh: &Bvh, ray: &Ray, q: &mut Q, stats: &mut
     let inv_dmax = 1.0 / d[0].abs().max(d[1].abs()).max(d[2].abs());
     let min_inv = inv[0].abs().min(inv[1].abs()).min(inv[2].abs());
     let br = BoxRay { origin: ray.origin, inv, neg, oct_inv: 7 - (neg[0] << 2 | neg[1] << 1 | neg[2]), normal_steps: min_inv >= 1.0 / 67_108_864.0 };
-    let mut stack = [[0u32; 2]; MAX_BVH_DEPTH];
+    // Not initialised (64 stores a ray otherwise): entries below `sp` are written before read.
+    let mut stack = [MaybeUninit::<[u32; 2]>::uninit(); MAX_BVH_DEPTH];
     let mut sp = 0usize;
     // The root as the only node of a group with no internal mask: bit 31, relative index 0.
     let mut nodes = [0u32, 1 << 31];
@@ -297,7 +337,7 @@ pub fn traverse<Q: Query, S: Stats>(bvh: &Bvh, ray: &Ray, q: &mut Q, stats: &mut
             let slot = (bit - 24) ^ br.oct_inv;
             let index = nodes[0] + (imask & ((1u32 << slot) - 1)).count_ones();
             if nodes[1] > 0x00ff_ffff && sp < MAX_BVH_DEPTH {
-                stack[sp] = nodes;
+                stack[sp] = MaybeUninit::new(nodes);
                 sp += 1;
             }
             if index >= n_nodes {
@@ -321,7 +361,7 @@ pub fn traverse<Q: Query, S: Stats>(bvh: &Bvh, ray: &Ray, q: &mut Q, stats: &mut
                 return;
             }
             // SAFETY: k < n_tris, checked above.
-            let tri = *unsafe { at(bvh.tris, k as usize) };
+            let tri = unsafe { at(bvh.tris, k as usize) }.triangle();
             q.test(tri._pad, &tri, &r, ray.t_min, stats);
             if !q.open() {
                 return;
@@ -332,7 +372,8 @@ pub fn traverse<Q: Query, S: Stats>(bvh: &Bvh, ray: &Ray, q: &mut Q, stats: &mut
                 return;
             }
             sp -= 1;
-            nodes = stack[sp];
+            // SAFETY: entry sp < the pushes' count was written by the push that made it.
+            nodes = unsafe { stack[sp].assume_init() };
         }
     }
 }

@@ -11,6 +11,14 @@ pub fn fma(a: f32, b: f32, c: f32) -> f32 {
     return libm::fmaf(a, b, c);
 }
 
+/// `v[k]` (k in 0..3, else `v[2]`) by comparisons and selects instead of an index computed at
+/// run time: a GPU compiler may place an array indexed dynamically in local memory.
+#[inline(always)]
+pub fn pick3(v: [f32; 3], k: usize) -> f32 {
+    let a = if k == 0 { v[0] } else { v[1] };
+    if k >= 2 { v[2] } else { a }
+}
+
 /// Square root (`core::f32::math::sqrt` in the shader build, `libm::sqrtf` natively).
 #[inline(always)]
 pub fn sqrt(x: f32) -> f32 {

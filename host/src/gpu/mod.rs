@@ -195,9 +195,9 @@ impl Gpu {
             .iter()
             .map(|e| wgpu::PassthroughShaderEntryPoint { name: e.name.clone().into(), workgroup_size: (e.workgroup_size[0], e.workgroup_size[1], e.workgroup_size[2]) })
             .collect();
-        let spirv = spirv_words();
-        // SAFETY: the module is the rust-gpu output of shader-crate, validated by spirv-val at
-        // build time; its entry points are the ones it declares (reflected above), and every
+        let spirv = spirv_words()?;
+        // SAFETY: the module is the rust-gpu output of shader-crate (built in, or the file
+        // `KDRAY_SPIRV` names for kernel development), validated by spirv-val at build time; its entry points are the ones it declares (reflected above), and every
         // pipeline layout is made from the bindings it declares.
         let module = unsafe {
             device.create_shader_module_passthrough(wgpu::ShaderModuleDescriptorPassthrough {

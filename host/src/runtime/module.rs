@@ -8,14 +8,32 @@ use crate::error::{bail, err, Result};
 
 static SPIRV: &[u8] = include_bytes!("../../kernels/kdray.spv");
 
+/// Environment variable naming a SPIR-V file to use instead of the built-in module: for kernel
+/// development (a module built by `scripts/kernels.sh` from edited sources runs without
+/// rebuilding the host). Its entry points are reflected and checked like the built-in ones.
+pub const SPIRV_OVERRIDE: &str = "KDRAY_SPIRV";
+
+/// The module's bytes: the file `KDRAY_SPIRV` names, else the built-in module.
+fn spirv_bytes() -> Result<&'static [u8]> {
+    static B: std::sync::OnceLock<Result<Vec<u8>, String>> = std::sync::OnceLock::new();
+    match std::env::var_os(SPIRV_OVERRIDE) {
+        None => Ok(SPIRV),
+        Some(path) => B
+            .get_or_init(|| std::fs::read(&path).map_err(|e| format!("{SPIRV_OVERRIDE}={}: {e}", path.to_string_lossy())))
+            .as_ref()
+            .map(|v| v.as_slice())
+            .map_err(|e| err!(Gpu: "{e}")),
+    }
+}
+
 /// The words of the SPIR-V module built from `shader-crate/`, without its source-line
 /// instructions (`OpLine`, `OpNoLine`: debug information only; the build keeps variable names,
 /// which leaves `OpNoLine`s behind, and the module is then word for word what a build without
 /// names gives, apart from the names).
-pub fn spirv_words() -> Vec<u32> {
+pub fn spirv_words() -> Result<Vec<u32>> {
     const OP_LINE: u32 = 8;
     const OP_NO_LINE: u32 = 317;
-    let words: Vec<u32> = SPIRV.chunks_exact(4).map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]])).collect();
+    let words: Vec<u32> = spirv_bytes()?.chunks_exact(4).map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]])).collect();
     let mut out = Vec::with_capacity(words.len());
     out.extend_from_slice(&words[..words.len().min(5)]);
     let mut i = 5;
@@ -32,15 +50,15 @@ pub fn spirv_words() -> Vec<u32> {
         }
         i += n;
     }
-    out
+    Ok(out)
 }
 
 /// The module's entry points as reflected (parsed once).
 pub fn module_info() -> Result<&'static reflect::Module> {
     static M: std::sync::OnceLock<Result<reflect::Module, String>> = std::sync::OnceLock::new();
-    M.get_or_init(|| reflect::parse(&spirv_words()).map_err(|e| format!("{e:#}")))
+    M.get_or_init(|| spirv_words().and_then(|w| reflect::parse(&w)).map_err(|e| format!("{e:#}")))
         .as_ref()
-        .map_err(|e| err!(Gpu: "the built-in SPIR-V module cannot be read: {e}"))
+        .map_err(|e| err!(Gpu: "the SPIR-V module cannot be read: {e}"))
 }
 
 /// The entry point a kernel names: `family::name` in the module (rust-gpu qualifies entry

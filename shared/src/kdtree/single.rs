@@ -9,6 +9,7 @@ use crate::aabb::{intersect_box, inv_dir};
 use crate::pod::Hit;
 use crate::ray::Ray;
 use crate::triangle::ShearedRay;
+use crate::math::pick3;
 use super::packet::PacketTraversal;
 
 /// Walks the tree for `q`. `PUSHDOWN` selects Horn's push-down restart node.
@@ -52,17 +53,18 @@ pub fn traverse<Q: Visitor, K: StackKind<Entry>, S: Stats, const PUSHDOWN: bool>
         if !node.is_leaf() {
             let k = node.axis();
             let p = node.split();
+            let (ok, ik) = (pick3(o, k), pick3(inv, k));
             let below = node.first_child();
             let above = below + 1;
             // The child the ray is in before the plane (A) and after it (B).
-            let (a, b, t_split) = if inv[k].is_infinite() {
+            let (a, b, t_split) = if ik.is_infinite() {
                 // Parallel to the plane: the side of the origin (on the plane: below, which
                 // holds every triangle touching the plane too).
-                let c = if o[k] <= p { below } else { above };
+                let c = if ok <= p { below } else { above };
                 (c, c, f32::INFINITY)
             } else {
-                let ts = (p - o[k]) * inv[k];
-                if inv[k] > 0.0 {
+                let ts = (p - ok) * ik;
+                if ik > 0.0 {
                     (below, above, ts)
                 } else {
                     (above, below, ts)

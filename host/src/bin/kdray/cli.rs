@@ -299,6 +299,10 @@ pub enum Command {
         /// Largest K of chairs:K in the scaling suite (1, 4, …, 4096).
         #[arg(long, default_value_t = 1024)]
         max_chairs: u32,
+        /// Only these rows of the horn suite (repeatable), by the method names of its tables:
+        /// bvh, stack, restart, pushdown, shortstack:3, restart+packets, …
+        #[arg(long)]
+        method: Vec<String>,
         #[command(flatten)]
         build: BuildArgs,
     },
@@ -381,7 +385,7 @@ pub fn run(cli: Cli) -> Result<()> {
             }
             Ok(())
         }
-        Command::Bench { suite, scene: scenes, device, size, reps, out, dump_rays, max_chairs, build } => {
+        Command::Bench { suite, scene: scenes, device, size, reps, out, dump_rays, max_chairs, method, build } => {
             if size == 0 || size > 4096 || reps == 0 {
                 bail!("--size must be 1..=4096 and --reps at least 1");
             }
@@ -405,6 +409,7 @@ pub fn run(cli: Cli) -> Result<()> {
                 out,
                 dump_rays,
                 max_chairs,
+                methods: (!method.is_empty()).then_some(method),
                 progress: progress("bench"),
             };
             let start = Instant::now();

@@ -12,6 +12,9 @@ fn main() {
         std::env::set_var("XDG_RUNTIME_DIR", std::env::temp_dir());
     }
     let cli = cli::Cli::parse();
+    if let Some(p) = std::env::var_os(kdray::runtime::module::SPIRV_OVERRIDE) {
+        eprintln!("note: GPU kernels from {} ({}), not the built-in module", p.to_string_lossy(), kdray::runtime::module::SPIRV_OVERRIDE);
+    }
     if let Err(e) = cli::run(cli) {
         eprintln!("error: {e:#}");
         std::process::exit(1);

@@ -28,6 +28,8 @@ pub struct Options<'g> {
     pub dump_rays: Option<PathBuf>,
     /// Largest K of `chairs:K` in `scaling`.
     pub max_chairs: u32,
+    /// Only these methods' rows in `horn` (by `Accel::name`).
+    pub methods: Option<Vec<String>>,
     pub progress: ProgressBar,
 }
 
@@ -163,7 +165,17 @@ const HORN_ROWS: [(&str, Accel); 8] = [
 /// (SS) rays on four scenes.
 fn horn(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
     let specs = horn_scenes(o);
-    o.progress.set_length((specs.len() * HORN_ROWS.len() * 2) as u64);
+    let horn_rows: Vec<(&str, Accel)> = match &o.methods {
+        None => HORN_ROWS.to_vec(),
+        Some(m) => {
+            let known: Vec<String> = HORN_ROWS.iter().map(|(_, a)| a.name()).collect();
+            if let Some(bad) = m.iter().find(|x| !known.contains(x)) {
+                bail!("--method {bad}: not a row of the horn suite (its methods: {})", known.join(", "));
+            }
+            HORN_ROWS.iter().copied().filter(|(_, a)| m.contains(&a.name())).collect()
+        }
+    };
+    o.progress.set_length((specs.len() * horn_rows.len() * 2) as u64);
     let mut rows = Vec::new();
     let mut names = Vec::new();
     for spec in &specs {
@@ -172,8 +184,8 @@ fn horn(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
         let bed = Bed::new(scene, tree, o.gpu, o.size, o.reps)?;
         let (primary, shadow) = primary_and_shadow(o, &bed)?;
         for set in [&primary, &shadow] {
-            for (_, accel) in HORN_ROWS {
-                rows.push(bed.measure(set, accel)?);
+            for (_, accel) in &horn_rows {
+                rows.push(bed.measure(set, *accel)?);
                 o.progress.inc(1);
             }
         }
@@ -184,7 +196,7 @@ fn horn(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
         header.push(format!("{n} PS"));
         header.push(format!("{n} SS"));
     }
-    let cells: Vec<Vec<String>> = HORN_ROWS
+    let cells: Vec<Vec<String>> = horn_rows
         .iter()
         .map(|(label, accel)| {
             let mut r = vec![format!("{label} (`{}`)", accel.name())];
@@ -205,7 +217,7 @@ fn horn(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
     let mut files = finish(o, "horn", "Horn et al. Table 1: kd-restart, packets, push-down, short-stack", &summary, &rows)?;
     plot(o, &mut files, "horn", |p| {
         let categories: Vec<String> = names.iter().flat_map(|n| [format!("{n} PS"), format!("{n} SS")]).collect();
-        let series = HORN_ROWS
+        let series = horn_rows
             .iter()
             .map(|(label, accel)| {
                 let v = names.iter().flat_map(|n| ["primary", "shadow"].map(|k| find(n, k, &accel.name()).map(|x| x.mrays()).unwrap_or(0.0))).collect();
