@@ -196,12 +196,34 @@ struct BoxRay {
     normal_steps: bool,
 }
 
-/// The hit bits of a child with meta byte `m` (0 for an empty slot, so an empty slot's box
-/// needs no test): a node's bit `24 + (slot ^ oct_inv)`, a leaf's triangle bits.
-#[inline(always)]
-fn child_bits(m: u32, oct_inv: u32) -> u32 {
-    let bit = if meta_is_node(m) { (m ^ oct_inv) & 0x1f } else { m & 0x1f };
-    ((m >> 5) & 7) << bit
+/// The hit bits of a node's children, per slot, from its meta bytes, four slots at once
+/// (Ylitie et al.'s packed form): 0 for an empty slot (so an empty slot's box needs no test), a
+/// node's bit `24 + (slot ^ oct_inv)`, a leaf's triangle bits.
+#[derive(Copy, Clone)]
+struct SlotBits {
+    /// Per meta byte of slots 0..4 and 4..8: its first hit bit's position (a node's slot
+    /// mirrored by the octant, a leaf's first triangle offset).
+    pos: [u32; 2],
+    /// Per meta byte: its number of bits (the unary count).
+    cnt: [u32; 2],
+}
+
+impl SlotBits {
+    #[inline(always)]
+    fn new(node: &BvhNode, oct_inv: u32) -> Self {
+        let oct4 = oct_inv * 0x0101_0101;
+        // Bit 4 of a byte is set where its low five bits are 24..32 (`meta_is_node`).
+        let pos = |m: u32| (m ^ (oct4 & ((((m & (m << 1)) & 0x1010_1010) >> 4) * 0xff))) & 0x1f1f_1f1f;
+        let (m0, m1) = (node.bases_meta.z, node.bases_meta.w);
+        SlotBits { pos: [pos(m0), pos(m1)], cnt: [(m0 >> 5) & 0x0707_0707, (m1 >> 5) & 0x0707_0707] }
+    }
+    /// Slot `s`'s hit bits.
+    #[inline(always)]
+    fn get(&self, s: u32) -> u32 {
+        let sh = (s & 3) * 8;
+        let (pos, cnt) = if s < 4 { (self.pos[0], self.cnt[0]) } else { (self.pos[1], self.cnt[1]) };
+        ((cnt >> sh) & 7) << ((pos >> sh) & 0x1f)
+    }
 }
 
 /// The hit mask of `node`'s children for `r` within [`t_min`, `t_max`]: node slots in bits
@@ -231,14 +253,14 @@ fn intersect_children(node: &BvhNode, r: &BoxRay, t_min: f32, t_max: f32) -> u32
 /// widened, parallel axes without NaN).
 #[inline(always)]
 fn exact_children(node: &BvhNode, r: &BoxRay, t_min: f32, t_max: f32) -> u32 {
+    let bits = SlotBits::new(node, r.oct_inv);
     let mut mask = 0u32;
     let mut s = 0u32;
     while s < BVH_WIDTH as u32 {
-        let m = node.meta(s);
-        if m != META_EMPTY {
+        if node.meta(s) != META_EMPTY {
             let (min, max) = node.child_box(s);
             if intersect_box(r.origin, r.inv, &Aabb { min, max }, t_min, t_max).is_some() {
-                mask |= child_bits(m, r.oct_inv);
+                mask |= bits.get(s);
             }
         }
         s += 1;
@@ -261,23 +283,13 @@ fn fast_children(node: &BvhNode, r: &BoxRay, adj_inv: [f32; 3], adj_o: [f32; 3],
     let (nx, fx) = pick((node.lo_x_y.x, node.lo_x_y.y), (node.lo_z_hi_x.z, node.lo_z_hi_x.w), r.neg[0]);
     let (ny, fy) = pick((node.lo_x_y.z, node.lo_x_y.w), (node.hi_y_z.x, node.hi_y_z.y), r.neg[1]);
     let (nz, fz) = pick((node.lo_z_hi_x.x, node.lo_z_hi_x.y), (node.hi_y_z.z, node.hi_y_z.w), r.neg[2]);
-    // `child_bits` of four slots at once (Ylitie et al.'s packed form): per meta byte, its hit
-    // bit's position (a node's slot mirrored by the octant) and its bits' count.
-    let oct4 = r.oct_inv * 0x0101_0101;
-    let packed = |m: u32| {
-        let inner = ((m & (m << 1)) & 0x1010_1010) >> 4;
-        ((m ^ (oct4 & (inner * 0xff))) & 0x1f1f_1f1f, (m >> 5) & 0x0707_0707)
-    };
-    let (pos0, cnt0) = packed(node.bases_meta.z);
-    let (pos1, cnt1) = packed(node.bases_meta.w);
+    let bits = SlotBits::new(node, r.oct_inv);
     let child = |s: u32| -> u32 {
         let b = |w: (u32, u32)| byte_of(w.0, w.1, s) as f32;
         let near = fma(b(nx), adj_inv[0], adj_o[0]).max(fma(b(ny), adj_inv[1], adj_o[1])).max(fma(b(nz), adj_inv[2], adj_o[2])).max(t_min);
         let far = fma(b(fx), adj_inv[0], adj_o[0]).min(fma(b(fy), adj_inv[1], adj_o[1])).min(fma(b(fz), adj_inv[2], adj_o[2])).min(t_max);
         if near <= far + slack {
-            let sh = (s & 3) * 8;
-            let (pos, cnt) = if s < 4 { (pos0, cnt0) } else { (pos1, cnt1) };
-            ((cnt >> sh) & 7) << ((pos >> sh) & 0x1f)
+            bits.get(s)
         } else {
             0
         }

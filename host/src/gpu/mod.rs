@@ -197,8 +197,9 @@ impl Gpu {
             .collect();
         let spirv = spirv_words()?;
         // SAFETY: the module is the rust-gpu output of shader-crate (built in, or the file
-        // `KDRAY_SPIRV` names for kernel development), validated by spirv-val at build time; its entry points are the ones it declares (reflected above), and every
-        // pipeline layout is made from the bindings it declares.
+        // `KDRAY_SPIRV` names for kernel development), validated by spirv-val at build time;
+        // its entry points are the ones it declares (reflected above), and every pipeline
+        // layout is made from the bindings it declares.
         let module = unsafe {
             device.create_shader_module_passthrough(wgpu::ShaderModuleDescriptorPassthrough {
                 label: Some("kdray-shader"),
