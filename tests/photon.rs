@@ -14,8 +14,8 @@ use kdray::runtime::cpu::NATIVE;
 use kdray::scene::{self, CameraSpec, PointLight, Scene, Spot};
 use kdray::{Runtime, Tracer};
 use kdray_shared::kdtree::Algorithm;
-use kdray_shared::photon::{emission_numbers, emit_photon, irradiance, HashGrid, KdCells, PhotonIndex};
-use kdray_shared::{Material, Photon, INDEX_KD};
+use kdray_shared::photon::{emission_numbers, emit_photon, irradiance, HashGrid, KdCells, PhotonIndex, PhotonWord, SortedPhotons};
+use kdray_shared::{Material, Photon, PhotonParams, INDEX_KD, PHOTON_SOBOL};
 
 fn runtimes() -> Vec<&'static dyn Runtime> {
     let mut v: Vec<&'static dyn Runtime> = vec![&NATIVE];
@@ -65,11 +65,14 @@ fn emitted_photons_follow_the_lights_emission() {
     assert_eq!(lights.len(), 3);
     let total: f64 = lights.iter().map(scene::power).sum();
     let expected: Vec<f64> = lights.iter().map(|l| scene::power(l) / total).collect();
-    // Photons of one lane across groups are independent, each with the lights' distribution
+    // Photons of one lane across groups are independent (or, from the Sobol sequence,
+    // stratified: a chi-square far below its expectation), each with the lights' distribution
     // (the toroidal shift); photons of one group are not independent of each other, so
     // grouped emission is tested lane by lane.
     let n = 200_000u32;
-    for (spread, lane) in [(0.0f32, None), (1.0, Some(0)), (1.0, Some(13)), (0.25, Some(31)), (0.25, Some(5)), (0.1, Some(7))] {
+    let cases = [(0.0f32, None), (1.0, Some(0)), (1.0, Some(13)), (0.25, Some(31)), (0.25, Some(5)), (0.1, Some(7))];
+    for (flags, (spread, lane)) in [0, PHOTON_SOBOL].into_iter().flat_map(|f| cases.into_iter().map(move |c| (f, c))) {
+        let params = PhotonParams { seed: 77, sequence: 78, pass: 3, emitted: n * 32, spread, flags, ..Default::default() };
         let (mut which, mut x_bins, mut cos2, mut phi) = ([0u64; 3], [0u64; 10], [0u64; 10], [0u64; 8]);
         let (mut sphere_z, mut cone_z) = ([0u64; 10], [0u64; 10]);
         let mut power = [0.0f64; 3];
@@ -78,7 +81,7 @@ fn emitted_photons_follow_the_lights_emission() {
                 None => k,
                 Some(l) => k * 32 + l,
             };
-            let (ray, p) = emit_photon(&lights, 3, n, emission_numbers(77, i, spread));
+            let (ray, p) = emit_photon(&lights, 3, n, emission_numbers(&params, i));
             for c in 0..3 {
                 power[c] += p[c] as f64;
             }
@@ -113,7 +116,7 @@ fn emitted_photons_follow_the_lights_emission() {
             ("spot light cos θ (uniform cone)", &cone_z[..], uniform(10)),
         ] {
             let x = chi2(counts, &p);
-            assert!(x < chi2_bound(p.len() - 1), "spread {spread}, lane {lane:?}: {name}: chi-square {x:.1} over {} bins ({counts:?})", p.len());
+            assert!(x < chi2_bound(p.len() - 1), "flags {flags}, spread {spread}, lane {lane:?}: {name}: chi-square {x:.1} over {} bins ({counts:?})", p.len());
         }
         // Energy: the photons carry the lights' power (luminance-weighted selection, RGB power).
         let want: [f64; 3] = [0, 1, 2].map(|c| {
@@ -123,7 +126,7 @@ fn emitted_photons_follow_the_lights_emission() {
                 .sum()
         });
         for c in 0..3 {
-            assert!((power[c] / want[c] - 1.0).abs() < 0.01, "spread {spread}, lane {lane:?}: channel {c}: photons carry {} W, lights emit {} W", power[c], want[c]);
+            assert!((power[c] / want[c] - 1.0).abs() < 0.01, "flags {flags}, spread {spread}, lane {lane:?}: channel {c}: photons carry {} W, lights emit {} W", power[c], want[c]);
         }
     }
 }
@@ -136,6 +139,9 @@ fn small_options(index: IndexKind, photons: u32) -> PhotonOptions {
 /// cell, and gathers equal to brute force.
 fn check_index(map: &PhotonMap, tree: &KdTreeData, records: &[Photon], what: &str) {
     let (sorted, offsets) = map.read_index().unwrap();
+    let words: Vec<PhotonWord> = sorted.iter().map(PhotonWord::of).collect();
+    let powers: Vec<u32> = sorted.iter().map(|p| p.power).collect();
+    let view = SortedPhotons { words: &words, powers: &powers, offsets: &offsets };
     let key = |p: &Photon| (p.position.map(f32::to_bits), p.power, p.packed);
     let mut a: Vec<_> = records.iter().map(key).collect();
     let mut b: Vec<_> = sorted.iter().map(key).collect();
@@ -162,9 +168,9 @@ fn check_index(map: &PhotonMap, tree: &KdTreeData, records: &[Photon], what: &st
     let gather = |x: [f32; 3], n: [f32; 3], m: u32| -> kdray_shared::photon::Estimate {
         if p.kind == INDEX_KD {
             let kd = KdCells { nodes: &tree.nodes, leaves: table.as_deref().unwrap(), cells: p.cells };
-            irradiance(&kd, &p, &sorted, &offsets, x, n, m)
+            irradiance(&kd, &p, &view, x, n, m)
         } else {
-            irradiance(&grid, &p, &sorted, &offsets, x, n, m)
+            irradiance(&grid, &p, &view, x, n, m)
         }
     };
     let mut nonempty = 0;
@@ -642,4 +648,32 @@ fn a_render_whose_device_is_lost_returns_the_passes_before_it() {
     let rt = LostAfter { fail_at: one - (two - one) + 1, submits: 0.into() };
     let e = render(&rt, 8).err().expect("an error");
     assert!(matches!(e.kind(), kdray::Error::DeviceLost(_)), "{e}");
+}
+
+/// A pass whose photons do not fit the records (their capacity set to the first pass's count,
+/// so that later passes that store more overflow) is found one pass late and redone from the
+/// last checkpoint (every pass) or from the start (no checkpoint): the image and statistics are
+/// those of a render whose records were large enough, bit for bit, on both runtimes.
+#[test]
+fn passes_whose_photons_overflow_the_records_are_redone() {
+    let s = scene::load("cornell").unwrap();
+    let tr = tree(&s);
+    let cam = s.camera.to_pod(24, 24);
+    let accel = Accel::kd(Algorithm::ShortStack(3));
+    for rt in runtimes() {
+        let t = Tracer::new(rt, &s, Some(&tr)).unwrap();
+        for checkpoint_seconds in [0.0, 1e9] {
+            let o = PhotonOptions { photons: 1 << 12, passes: 6, checkpoint_seconds, ..Default::default() };
+            let mut fits = PhotonMap::new(&t, accel, Some(&tr), s.surface_area(), o.clone()).unwrap();
+            let (want, want_stats) = pm::render(&mut fits, &cam, &()).unwrap();
+            let mut tight = PhotonMap::new(&t, accel, Some(&tr), s.surface_area(), o).unwrap();
+            let first = tight.trace_and_index(0).unwrap();
+            // Smaller than the buffers: safe, every kernel bounds its stores by it.
+            tight.capacity = first;
+            let (img, stats) = pm::render(&mut tight, &cam, &()).unwrap();
+            assert!(tight.capacity > first, "{}: no pass overflowed {first} slots, the test tests nothing", rt.name());
+            assert!(img.radiance == want.radiance, "{}, checkpoints every {checkpoint_seconds} s: the redone render differs", rt.name());
+            assert_eq!((stats.passes, stats.emitted, stats.stored), (want_stats.passes, want_stats.emitted, want_stats.stored));
+        }
+    }
 }

@@ -14,7 +14,7 @@ use kdray_shared::brute::BruteForce;
 use kdray_shared::aabb::Aabb;
 use kdray_shared::bvh::{Bvh, BvhNode, TriWords};
 use kdray_shared::trace::{self, Brute, Kd, Method, Wide};
-use kdray_shared::photon::{self, HashGrid, KdCells};
+use kdray_shared::photon::{self, HashGrid, KdCells, PhotonWord, SortedPhotons};
 use kdray_shared::{
     render, sort, Hit, IndexParams, ItemParams, LeafCells, Light, Material, PathState, Photon, PhotonParams, PhotonPath, Ray, RenderParams,
     ShadeTerms, SortParams, TraceParams, Triangle,
@@ -968,8 +968,10 @@ pub struct PermutePhotons<'a> {
     pub order: &'a Buffer<u32>,
     /// Cell offsets into `order`; `offsets[cells · maps]` photons were placed.
     pub offsets: &'a Buffer<u32>,
-    /// Written: the placed records in cell order.
-    pub sorted: &'a Buffer<Photon>,
+    /// Written: the placed records' positions and packed words in cell order.
+    pub words: &'a Buffer<PhotonWord>,
+    /// Written: their powers, in the same order.
+    pub powers: &'a Buffer<u32>,
 }
 
 impl Kernel for PermutePhotons<'_> {
@@ -980,15 +982,18 @@ impl Kernel for PermutePhotons<'_> {
         bytemuck::bytes_of(&self.params)
     }
     fn bindings(&self) -> Vec<Bind<'_>> {
-        vec![read("photons", self.photons), read("order", self.order), read("offsets", self.offsets), write("sorted", self.sorted)]
+        vec![read("photons", self.photons), read("order", self.order), read("offsets", self.offsets), write("words", self.words), write("powers", self.powers)]
     }
     fn threads(&self) -> u32 {
         self.params.count
     }
     fn run(&self, t: u32) {
         // SAFETY: called by the native runtime during the dispatch of this pass, which holds
-        // its bindings; item t writes sorted[t] only.
-        unsafe { photon::permute(t, &self.params, self.photons.host(), self.order.host(), self.offsets.host(), &mut self.sorted.host_store()) }
+        // its bindings; item t writes words[t] and powers[t] only.
+        unsafe {
+            let (mut words, mut powers) = (self.words.host_store(), self.powers.host_store());
+            photon::permute(t, &self.params, self.photons.host(), self.order.host(), self.offsets.host(), &mut words, &mut powers)
+        }
     }
 }
 
@@ -1001,9 +1006,11 @@ pub struct Gather<'a> {
     pub index: IndexBinds<'a>,
     /// Each path's ray slot; at a gather point, the point (origin) and its normal (direction).
     pub rays: &'a Buffer<Ray>,
-    /// The photon records in cell order (`PermutePhotons`).
-    pub photons: &'a Buffer<Photon>,
-    /// Cell offsets into `photons` (`offsets[c]..offsets[c + 1]` are cell c's).
+    /// The photons' positions and packed words in cell order (`PermutePhotons`).
+    pub words: &'a Buffer<PhotonWord>,
+    /// Their powers, in the same order.
+    pub powers: &'a Buffer<u32>,
+    /// Cell offsets into `words` and `powers` (`offsets[c]..offsets[c + 1]` are cell c's).
     pub offsets: &'a Buffer<u32>,
     /// Read and written: each path's state; a path at a gather point gains the photons' radiance.
     pub paths: &'a Buffer<PathState>,
@@ -1017,7 +1024,7 @@ impl Kernel for Gather<'_> {
         bytemuck::bytes_of(&self.params)
     }
     fn bindings(&self) -> Vec<Bind<'_>> {
-        let mut b = vec![read("rays", self.rays), read("photons", self.photons), read("offsets", self.offsets)];
+        let mut b = vec![read("rays", self.rays), read("words", self.words), read("powers", self.powers), read("offsets", self.offsets)];
         b.extend(self.index.binds());
         b.push(write("paths", self.paths));
         b
@@ -1029,12 +1036,13 @@ impl Kernel for Gather<'_> {
         // SAFETY: called by the native runtime during the dispatch of this pass, which holds
         // its bindings; item t writes paths[t] only.
         unsafe {
-            let (rays, photons, offsets, mut paths) = (self.rays.host(), self.photons.host(), self.offsets.host(), self.paths.host_store());
+            let (rays, mut paths) = (self.rays.host(), self.paths.host_store());
+            let sorted = SortedPhotons { words: self.words.host(), powers: self.powers.host(), offsets: self.offsets.host() };
             match self.index {
-                IndexBinds::Grid => photon::gather(t, &self.params, &HashGrid::new(&self.params), rays, photons, offsets, &mut paths),
+                IndexBinds::Grid => photon::gather(t, &self.params, &HashGrid::new(&self.params), rays, &sorted, &mut paths),
                 IndexBinds::Kd { nodes, leaves } => {
                     let index = KdCells { nodes: nodes.host(), leaves: leaves.host(), cells: self.params.cells };
-                    photon::gather(t, &self.params, &index, rays, photons, offsets, &mut paths)
+                    photon::gather(t, &self.params, &index, rays, &sorted, &mut paths)
                 }
             }
         }

@@ -7,7 +7,7 @@ use kdray_shared::aabb::Aabb;
 use kdray_shared::bvh::{BvhNode, TriWords};
 use kdray_shared::kdtree::{Full, KdNode, Short};
 use kdray_shared::trace::{Brute, Kd, Wide};
-use kdray_shared::photon::{self, HashGrid, KdCells};
+use kdray_shared::photon::{self, HashGrid, KdCells, PhotonWord, SortedPhotons};
 use kdray_shared::{Hit, IndexParams, LeafCells, Light, Material, PathState, Photon, PhotonParams, PhotonPath, Ray, Triangle};
 use spirv_std::glam::UVec3;
 use spirv_std::spirv;
@@ -75,9 +75,10 @@ pub fn permute_photons(
     #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] photons: &[Photon],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] order: &[u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] offsets: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] sorted: &mut [Photon],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] words: &mut [PhotonWord],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] powers: &mut [u32],
 ) {
-    photon::permute(crate::item(id, groups), params, photons, order, offsets, sorted);
+    photon::permute(crate::item(id, groups), params, photons, order, offsets, words, powers);
 }
 
 #[spirv(compute(threads(64)))]
@@ -86,11 +87,13 @@ pub fn gather_grid(
     #[spirv(num_workgroups)] groups: UVec3,
     #[spirv(push_constant)] params: &IndexParams,
     #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] rays: &[Ray],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] photons: &[Photon],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] offsets: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] paths: &mut [PathState],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] words: &[PhotonWord],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] powers: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] offsets: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] paths: &mut [PathState],
 ) {
-    photon::gather(crate::item(id, groups), params, &HashGrid::new(params), rays, photons, offsets, paths);
+    let sorted = SortedPhotons { words, powers, offsets };
+    photon::gather(crate::item(id, groups), params, &HashGrid::new(params), rays, &sorted, paths);
 }
 
 #[spirv(compute(threads(64)))]
@@ -99,14 +102,16 @@ pub fn gather_kd(
     #[spirv(num_workgroups)] groups: UVec3,
     #[spirv(push_constant)] params: &IndexParams,
     #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] rays: &[Ray],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] photons: &[Photon],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] offsets: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] nodes: &[KdNode],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] leaves: &[LeafCells],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] paths: &mut [PathState],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] words: &[PhotonWord],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] powers: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] offsets: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] nodes: &[KdNode],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] leaves: &[LeafCells],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] paths: &mut [PathState],
 ) {
     let index = KdCells { nodes, leaves, cells: params.cells };
-    photon::gather(crate::item(id, groups), params, &index, rays, photons, offsets, paths);
+    let sorted = SortedPhotons { words, powers, offsets };
+    photon::gather(crate::item(id, groups), params, &index, rays, &sorted, paths);
 }
 
 /// One entry point running `photon::trace_photon::<$m>` (a photon from the light to its

@@ -31,6 +31,7 @@ pub mod query;
 pub mod ray;
 pub mod render;
 pub mod rng;
+pub mod sampler;
 pub mod shade;
 mod sizes;
 pub mod sort;

@@ -17,9 +17,13 @@
 //!    normal lies on the same side, weighted by a kernel, divided by πr²; added to the path's
 //!    radiance, which the film (`render::film`) then adds up.
 //!
-//! Random numbers come from the stream (pass seed, bounce, photon): a pass is a function of
-//! its index and the scene only, so passes can run anywhere and be summed.
+//! Numbers come from `sampler::Sampler::photon_group` (emission) and `Sampler::photon`
+//! (bounces): independent ones keyed by (pass seed, photon), or points of the render's Sobol
+//! sequences at (pass, photon). Either way a pass is a function of its index and the scene
+//! only, so passes can run anywhere and be summed.
 use crate::kdtree::KdNode;
+use bytemuck::{Pod, Zeroable};
+use glam::UVec4;
 use crate::query::{Answer, Closest, Query};
 use crate::trace::Method;
 use crate::kernel::{AtomicStore, Store};
@@ -32,7 +36,8 @@ use crate::pod::{
     PHOTON_STORE_DIRECT,
 };
 use crate::ray::Ray;
-use crate::rng::{pcg_hash, Rng};
+use crate::rng::pcg_hash;
+use crate::sampler::{self, Sampler, DIM_EMIT_DIRECTION, DIM_EMIT_POSITION};
 use crate::shade::{self, choose_light, is_specular, offset, specular_bounce, surface_point, NO_RAY};
 
 /// Photons per coherent group.
@@ -46,9 +51,9 @@ pub const NO_CELL: u32 = u32::MAX;
 /// Bound on the kd-tree walk of the index (the builder's depth limit is 48).
 const KD_STACK: usize = 64;
 
-/// Increments of the 5-D Kronecker lattice of the lanes (powers of 1/φ₅, φ₅ the real root
-/// of x⁶ = x + 1: Roberts' generalised golden ratio).
-const LATTICE: [f32; 5] = [0.881_271_5, 0.776_639_4, 0.684_430_1, 0.603_168_7, 0.531_555_4];
+/// Increments of the 4-D Kronecker lattice of the lanes (powers of 1/φ₄, φ₄ the real root
+/// of x⁵ = x + 1: Roberts' generalised golden ratio).
+const LATTICE: [f32; 4] = [0.856_674_9, 0.733_891_9, 0.628_706_7, 0.538_597_3];
 
 // ---------------------------------------------------------------------------------------------
 // Compact records
@@ -152,60 +157,104 @@ impl Photon {
     }
 }
 
+/// A photon of the index (cell order) as the gather reads it first: its position (`f32` bits)
+/// and `Photon::packed` in one 16-byte word, loaded in one vector access. Its power is in an
+/// array of its own (`SortedPhotons::powers`), read only for photons inside the gather disc.
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct PhotonWord {
+    /// x, y, z bits and the packed normal, direction and bits.
+    pub word: UVec4,
+}
+
+impl PhotonWord {
+    /// The word of `ph`.
+    #[inline(always)]
+    pub fn of(ph: &Photon) -> PhotonWord {
+        PhotonWord { word: UVec4::new(ph.position[0].to_bits(), ph.position[1].to_bits(), ph.position[2].to_bits(), ph.packed) }
+    }
+    /// Where the photon landed.
+    #[inline(always)]
+    pub fn position(&self) -> [f32; 3] {
+        [f32::from_bits(self.word.x), f32::from_bits(self.word.y), f32::from_bits(self.word.z)]
+    }
+    /// The whole record again, given its power word.
+    #[inline(always)]
+    pub fn photon(&self, power: u32) -> Photon {
+        Photon { position: self.position(), power, packed: self.word.w }
+    }
+}
+
+/// The index's photons in cell order: cell c's are `offsets[c]..offsets[c + 1]` of `words`
+/// and `powers`.
+#[derive(Copy, Clone)]
+pub struct SortedPhotons<'a> {
+    /// Positions and packed words (`PhotonWord`).
+    pub words: &'a [PhotonWord],
+    /// Powers (RGB9E5), in the same order.
+    pub powers: &'a [u32],
+    /// Each cell's first photon; `offsets[cells · maps]` photons in all.
+    pub offsets: &'a [u32],
+}
+
 // ---------------------------------------------------------------------------------------------
 // Emission
 
-/// The five uniform numbers of photon `photon` of a pass: its own (spread 0), or its group's
-/// shifted by its lane's lattice point times `spread`, modulo 1.
+/// The four uniform numbers of photon `photon` of the pass of `p` (light and position ×2,
+/// direction ×2): its own (`p.spread` 0), or its group's shifted by its lane's lattice point
+/// times `p.spread`, modulo 1 (a toroidal shift: each photon's numbers are still uniform).
+/// Independent or from the render's group sequence (`Sampler::photon_group`, `PHOTON_SOBOL`).
 #[inline(always)]
-pub fn emission_numbers(seed: u32, photon: u32, spread: f32) -> [f32; 5] {
-    let mut u = [0.0f32; 5];
-    if spread > 0.0 {
-        let mut rng = Rng::new(seed, photon / GROUP);
+pub fn emission_numbers(p: &PhotonParams, photon: u32) -> [f32; 4] {
+    if p.spread > 0.0 {
+        let smp = Sampler::photon_group(p, photon / GROUP, GROUP);
+        let a = smp.get2(DIM_EMIT_POSITION);
+        let b = smp.get2(DIM_EMIT_DIRECTION);
+        let base = [a[0], a[1], b[0], b[1]];
         let lane = (photon % GROUP) as f32;
+        let mut u = [0.0f32; 4];
         let mut k = 0;
-        while k < 5 {
-            u[k] = fract_pos(rng.next_f32() + fract_pos(lane * LATTICE[k]) * spread);
+        while k < 4 {
+            u[k] = fract_pos(base[k] + fract_pos(lane * LATTICE[k]) * p.spread);
             k += 1;
         }
+        u
     } else {
-        let mut rng = Rng::new(seed ^ 0xB7E1_5163, photon);
-        let mut k = 0;
-        while k < 5 {
-            u[k] = rng.next_f32();
-            k += 1;
-        }
+        let smp = Sampler::photon_group(p, photon, 1);
+        let a = smp.get2(DIM_EMIT_POSITION);
+        let b = smp.get2(DIM_EMIT_DIRECTION);
+        [a[0], a[1], b[0], b[1]]
     }
-    u
 }
 
 /// A photon leaving the lights: its ray and power (1/`emitted` of the lights' total in
-/// expectation), from the five numbers `u` (light, position ×2, direction ×2).
+/// expectation), from the four numbers `u`: the first chooses the light and, rescaled to the
+/// light's share, goes on with the second to place the point; the last two, the direction.
 #[inline(always)]
-pub fn emit_photon(lights: &[Light], light_count: u32, emitted: u32, u: [f32; 5]) -> (Ray, [f32; 3]) {
+pub fn emit_photon(lights: &[Light], light_count: u32, emitted: u32, u: [f32; 4]) -> (Ray, [f32; 3]) {
     if light_count == 0 || emitted == 0 {
         return (NO_RAY, [0.0; 3]);
     }
-    let (li, p_select) = choose_light(lights, light_count, u[0], true);
+    let (li, p_select, u1) = choose_light(lights, light_count, u[0], true);
     let light = &lights[li];
     let norm = 1.0 / (p_select * emitted as f32);
     if light.kind == LIGHT_POINT {
-        let d = direction_around([0.0, 0.0, 1.0], 1.0 - 2.0 * u[3], u[4]);
+        let d = direction_around([0.0, 0.0, 1.0], 1.0 - 2.0 * u[2], u[3]);
         let power = scale3(light.emission, 4.0 * core::f32::consts::PI * norm);
         return (Ray::new(light.p0, d, 0.0, f32::INFINITY), power);
     }
     if light.kind == LIGHT_SPOT {
         let cos_max = light.e2[0];
-        let cos_theta = 1.0 - u[3] * (1.0 - cos_max);
-        let d = direction_around(light.e1, cos_theta, u[4]);
+        let cos_theta = 1.0 - u[2] * (1.0 - cos_max);
+        let d = direction_around(light.e1, cos_theta, u[3]);
         let solid = 2.0 * core::f32::consts::PI * (1.0 - cos_max);
         let power = scale3(light.emission, shade::spot_falloff(light, d) * solid * norm);
         return (Ray::new(light.p0, d, 0.0, f32::INFINITY), power);
     }
-    let s = crate::math::sqrt(u[1]);
-    let q = add3(add3(light.p0, scale3(light.e1, 1.0 - s)), scale3(light.e2, u[2] * s));
+    let s = crate::math::sqrt(u1);
+    let q = add3(add3(light.p0, scale3(light.e1, 1.0 - s)), scale3(light.e2, u[1] * s));
     let n = normalize3(cross3(light.e1, light.e2));
-    let d = cosine_direction(n, u[3], u[4]);
+    let d = cosine_direction(n, u[2], u[3]);
     // A Lambertian emitter on its front side: power π · area · radiance.
     let power = scale3(light.emission, core::f32::consts::PI * light.area * norm);
     (Ray::new(offset(q, n), d, 0.0, f32::INFINITY), power)
@@ -215,7 +264,7 @@ pub fn emit_photon(lights: &[Light], light_count: u32, emitted: u32, u: [f32; 5]
 #[inline(always)]
 pub fn emit<R: Store<Ray> + ?Sized, S: Store<PhotonPath> + ?Sized>(i: u32, p: &PhotonParams, lights: &[Light], rays: &mut R, paths: &mut S) {
     if i < p.count {
-        let u = emission_numbers(p.seed, p.first + i, p.spread);
+        let u = emission_numbers(p, p.first + i);
         let (ray, power) = emit_photon(lights, p.light_count, p.emitted, u);
         let flags = if ray.is_valid() { PHOTON_ACTIVE | PHOTON_SPECULAR_ONLY } else { 0 };
         rays.store(i as usize, ray);
@@ -254,11 +303,11 @@ pub fn bounce_step<O, C>(
         let tri = &tris[hit.prim as usize];
         let mat = &materials[tri.material as usize];
         let (pt, n) = surface_point(tri, hit, ray);
-        let mut rng = Rng::new(p.seed ^ (bounce + 1).wrapping_mul(0x9E37_79B9), photon);
+        let smp = Sampler::photon(p, photon);
         let last = bounce >= p.max_bounces;
         if is_specular(mat) {
             if !last {
-                next = specular_bounce(mat, tri, pt, normalize3(ray.dir), rng.next_f32());
+                next = specular_bounce(mat, tri, pt, normalize3(ray.dir), smp.get1(sampler::dim(bounce, sampler::FRESNEL, false)));
                 if mat.flags & MAT_MIRROR != 0 {
                     path.power = mul3(path.power, mat.diffuse);
                 }
@@ -269,13 +318,14 @@ pub fn bounce_step<O, C>(
                 let caustic = p.caustic_map != 0 && bounce > 0 && path.flags & PHOTON_SPECULAR_ONLY != 0;
                 let slot = counter.atomic_add(0, 1);
                 if slot < p.capacity {
-                    photons.store(slot as usize, Photon::new(pt, path.power, n, normalize3(ray.dir), caustic, bounce == 0, rng.next_f32()));
+                    photons.store(slot as usize, Photon::new(pt, path.power, n, normalize3(ray.dir), caustic, bounce == 0, smp.get1(sampler::dim(bounce, sampler::DITHER, false))));
                 }
             }
             let a = mat.diffuse;
             let q = a[0].max(a[1]).max(a[2]).min(1.0);
-            if !last && rng.next_f32() < q {
-                let d = cosine_direction(n, rng.next_f32(), rng.next_f32());
+            if !last && smp.get1(sampler::dim(bounce, sampler::ROULETTE, false)) < q {
+                let u = smp.get2(sampler::dim(bounce, sampler::BOUNCE, false));
+                let d = cosine_direction(n, u[0], u[1]);
                 next = Ray::new(offset(pt, n), d, 0.0, f32::INFINITY);
                 path.power = mul3(path.power, scale3(a, 1.0 / q));
                 flags = PHOTON_ACTIVE;
@@ -340,7 +390,7 @@ pub fn trace_photon<M: Method, O: Store<Photon> + ?Sized, C: AtomicStore + ?Size
         return;
     }
     let photon = p.first + i;
-    let (mut ray, power) = emit_photon(lights, p.light_count, p.emitted, emission_numbers(p.seed, photon, p.spread));
+    let (mut ray, power) = emit_photon(lights, p.light_count, p.emitted, emission_numbers(p, photon));
     let mut path = PhotonPath { power, flags: if ray.is_valid() { PHOTON_ACTIVE | PHOTON_SPECULAR_ONLY } else { 0 } };
     let mut bounce = 0;
     while bounce <= p.max_bounces && path.flags & PHOTON_ACTIVE != 0 {
@@ -355,21 +405,23 @@ pub fn trace_photon<M: Method, O: Store<Photon> + ?Sized, C: AtomicStore + ?Size
 // ---------------------------------------------------------------------------------------------
 // The index
 
-/// Receives the cells that a gather visits, with the photons in cell order and the cells'
-/// offsets. (The photons are passed along rather than held: a mutable visitor holding storage
-/// buffer slices crashed NVIDIA's SPIR-V compiler, driver 580.)
+/// Receives the cells that a gather visits, as runs of consecutive cells, with the photons
+/// in cell order. (The photons are passed along rather than held: a mutable visitor holding
+/// storage buffer slices crashed NVIDIA's SPIR-V compiler, driver 580.)
 pub trait CellVisitor {
-    /// Visits cell `c`, whose photons are `photons[offsets[c]..offsets[c + 1]]`.
-    fn cell(&mut self, c: u32, photons: &[Photon], offsets: &[u32]);
+    /// Visits cells `first..end`, whose photons are those from `sorted.offsets[first]` to
+    /// `sorted.offsets[end]`.
+    fn cells(&mut self, first: u32, end: u32, sorted: &SortedPhotons);
 }
 
 /// Where photons live: the cell of a photon, and the cells a disc query must look at.
 pub trait PhotonIndex {
     /// The cell (of `map`: 0 global, 1 caustic) that holds a photon at `p`.
     fn cell(&self, p: [f32; 3], map: u32) -> u32;
-    /// Calls `v.cell(c, photons, offsets)` once for every cell of `map` that may hold a photon
-    /// within `r` of `x` (and possibly others).
-    fn visit<V: CellVisitor>(&self, x: [f32; 3], r: f32, map: u32, photons: &[Photon], offsets: &[u32], v: &mut V);
+    /// Calls `v.cells(first, end, sorted)` for runs of consecutive cells of `map` that hold
+    /// every cell that may hold a photon within `r` of `x` (and possibly others), each such
+    /// cell once.
+    fn visit<V: CellVisitor>(&self, x: [f32; 3], r: f32, map: u32, sorted: &SortedPhotons, v: &mut V);
 }
 
 /// (B) A hashed uniform grid per map: cells of size 2r/(w − 1) for a window of w = 2 or 3
@@ -434,7 +486,7 @@ impl PhotonIndex for HashGrid {
         self.bucket([self.coord(p[0], o[0], inv), self.coord(p[1], o[1], inv), self.coord(p[2], o[2], inv)], map)
     }
     #[inline(always)]
-    fn visit<V: CellVisitor>(&self, x: [f32; 3], r: f32, map: u32, photons: &[Photon], offsets: &[u32], v: &mut V) {
+    fn visit<V: CellVisitor>(&self, x: [f32; 3], r: f32, map: u32, sorted: &SortedPhotons, v: &mut V) {
         let inv = 1.0 / self.cell_size[map as usize];
         let o = self.origin;
         let w = self.window;
@@ -445,43 +497,30 @@ impl PhotonIndex for HashGrid {
             self.coord(x[1] + r, o[1], inv).min(lo[1] + w - 1),
             self.coord(x[2] + r, o[2], inv).min(lo[2] + w - 1),
         ];
-        // Blocks and places counted up incrementally (no division per cell), the block hash
-        // nested as in `bucket`.
+        // Along x, the cells of one block are consecutive buckets: a row of the window is one
+        // run, or two where it crosses into the next block. The block hash is nested as in
+        // `bucket`.
         let base = map * self.cells;
         let w3 = w * w * w;
-        let (mut qz, mut mz) = (lo[2] / w, lo[2] % w);
+        let (qx0, mx0) = (lo[0] / w, lo[0] % w);
+        let n = hi[0] - lo[0] + 1;
+        let first_run = n.min(w - mx0);
         let mut z = lo[2];
         while z <= hi[2] {
-            let hz = pcg_hash(qz);
-            let (mut qy, mut my) = (lo[1] / w, lo[1] % w);
+            let hz = pcg_hash(z / w);
             let mut y = lo[1];
             while y <= hi[1] {
-                let hy = pcg_hash(qy ^ hz);
-                let (mut qx, mut mx) = (lo[0] / w, lo[0] % w);
-                let mut xx = lo[0];
-                while xx <= hi[0] {
-                    let h = pcg_hash(qx ^ hy);
-                    v.cell((h & (self.blocks - 1)) * w3 + mx + w * (my + w * mz) + base, photons, offsets);
-                    xx += 1;
-                    mx += 1;
-                    if mx == w {
-                        mx = 0;
-                        qx += 1;
-                    }
+                let hy = pcg_hash((y / w) ^ hz);
+                let place = w * (y % w + w * (z % w)) + base;
+                let c = (pcg_hash(qx0 ^ hy) & (self.blocks - 1)) * w3 + mx0 + place;
+                v.cells(c, c + first_run, sorted);
+                if first_run < n {
+                    let c = (pcg_hash((qx0 + 1) ^ hy) & (self.blocks - 1)) * w3 + place;
+                    v.cells(c, c + n - first_run, sorted);
                 }
                 y += 1;
-                my += 1;
-                if my == w {
-                    my = 0;
-                    qy += 1;
-                }
             }
             z += 1;
-            mz += 1;
-            if mz == w {
-                mz = 0;
-                qz += 1;
-            }
         }
     }
 }
@@ -538,7 +577,7 @@ impl PhotonIndex for KdCells<'_> {
         l.base + (c[2] * d[1] + c[1]) * d[0] + c[0] + map * self.cells
     }
     #[inline(always)]
-    fn visit<V: CellVisitor>(&self, x: [f32; 3], r: f32, map: u32, photons: &[Photon], offsets: &[u32], v: &mut V) {
+    fn visit<V: CellVisitor>(&self, x: [f32; 3], r: f32, map: u32, sorted: &SortedPhotons, v: &mut V) {
         let lo = sub3(x, [r; 3]);
         let hi = add3(x, [r; 3]);
         let mut stack = [0u32; KD_STACK];
@@ -574,11 +613,9 @@ impl PhotonIndex for KdCells<'_> {
             while z <= b[2] {
                 let mut y = a[1];
                 while y <= b[1] {
-                    let mut xx = a[0];
-                    while xx <= b[0] {
-                        v.cell(l.base + (z * d[1] + y) * d[0] + xx + map * self.cells, photons, offsets);
-                        xx += 1;
-                    }
+                    // A row of the leaf's cells along x is a run of consecutive cells.
+                    let c = l.base + (z * d[1] + y) * d[0] + map * self.cells;
+                    v.cells(c + a[0], c + b[0] + 1, sorted);
                     y += 1;
                 }
                 z += 1;
@@ -613,13 +650,23 @@ pub fn keys<I: PhotonIndex, K: Store<u32> + ?Sized>(i: u32, p: &IndexParams, ind
     }
 }
 
-/// The photons in cell order: `sorted[j] = photons[order[j]]` for the `offsets[cells·maps]`
-/// placed ones.
+/// The photons in cell order: `words[j]`, `powers[j]` of `photons[order[j]]` for the
+/// `offsets[cells·maps]` placed ones.
 #[inline(always)]
-pub fn permute<O: Store<Photon> + ?Sized>(i: u32, p: &IndexParams, photons: &[Photon], order: &[u32], offsets: &[u32], sorted: &mut O) {
+pub fn permute<W: Store<PhotonWord> + ?Sized, P: Store<u32> + ?Sized>(
+    i: u32,
+    p: &IndexParams,
+    photons: &[Photon],
+    order: &[u32],
+    offsets: &[u32],
+    words: &mut W,
+    powers: &mut P,
+) {
     let placed = offsets[(p.cells * p.maps) as usize];
     if i < p.count && i < placed {
-        sorted.store(i as usize, photons[order[i as usize] as usize]);
+        let ph = photons[order[i as usize] as usize];
+        words.store(i as usize, PhotonWord::of(&ph));
+        powers.store(i as usize, ph.power);
     }
 }
 
@@ -641,25 +688,26 @@ struct Sum {
 
 impl CellVisitor for Sum {
     #[inline(always)]
-    fn cell(&mut self, c: u32, photons: &[Photon], offsets: &[u32]) {
-        let (a, b) = (offsets[c as usize], offsets[c as usize + 1]);
+    fn cells(&mut self, first: u32, end: u32, sorted: &SortedPhotons) {
+        let (a, b) = (sorted.offsets[first as usize], sorted.offsets[end as usize]);
         let mut j = a;
         while j < b {
-            let ph = &photons[j as usize];
-            let d = sub3(ph.position, self.x);
+            // One 16-byte load decides most photons: those outside the disc.
+            let w = sorted.words[j as usize].word;
+            let d = sub3([f32::from_bits(w.x), f32::from_bits(w.y), f32::from_bits(w.z)], self.x);
             let d2 = dot3(d, d);
             if d2 <= self.r2 {
-                if dot3(ph.normal(), self.n) <= 0.5 {
+                if dot3(decode_oct(w.w & 0xffff, 8), self.n) <= 0.5 {
                     self.other += 1;
-                } else if !(self.skip_direct && ph.is_direct()) {
-                    let w = if self.filter == FILTER_CONE {
+                } else if !(self.skip_direct && w.w & DIRECT_BIT != 0) {
+                    let k = if self.filter == FILTER_CONE {
                         3.0 * (1.0 - crate::math::sqrt(d2 / self.r2))
                     } else if self.filter == FILTER_EPANECHNIKOV {
                         2.0 * (1.0 - d2 / self.r2)
                     } else {
                         1.0
                     };
-                    self.sum = add3(self.sum, scale3(ph.power(), w));
+                    self.sum = add3(self.sum, scale3(decode_rgb9e5(sorted.powers[j as usize]), k));
                     self.found += 1;
                 }
             }
@@ -683,11 +731,11 @@ pub struct Estimate {
 /// photons within the map's radius on the same side, direct ones left out under
 /// `GATHER_SKIP_DIRECT`.
 #[inline(always)]
-pub fn irradiance<I: PhotonIndex>(index: &I, p: &IndexParams, photons: &[Photon], offsets: &[u32], x: [f32; 3], n: [f32; 3], map: u32) -> Estimate {
+pub fn irradiance<I: PhotonIndex>(index: &I, p: &IndexParams, sorted: &SortedPhotons, x: [f32; 3], n: [f32; 3], map: u32) -> Estimate {
     let r = p.radius[map as usize];
     let skip_direct = p.gather_flags & GATHER_SKIP_DIRECT != 0;
     let mut s = Sum { x, n, r2: r * r, filter: p.filter, skip_direct, sum: [0.0; 3], found: 0, other: 0 };
-    index.visit(x, r, map, photons, offsets, &mut s);
+    index.visit(x, r, map, sorted, &mut s);
     Estimate { irradiance: scale3(s.sum, 1.0 / (core::f32::consts::PI * r * r)), found: s.found, other: s.other }
 }
 
@@ -701,8 +749,7 @@ pub fn gather<I: PhotonIndex, P: Store<PathState> + ?Sized>(
     p: &IndexParams,
     index: &I,
     rays: &[Ray],
-    photons: &[Photon],
-    offsets: &[u32],
+    sorted: &SortedPhotons,
     paths: &mut P,
 ) {
     if i >= p.count {
@@ -717,7 +764,7 @@ pub fn gather<I: PhotonIndex, P: Store<PathState> + ?Sized>(
         let mut near_edge = false;
         let mut map = p.first_map;
         while map < p.maps {
-            let m = irradiance(index, p, photons, offsets, g.origin, g.dir, map);
+            let m = irradiance(index, p, sorted, g.origin, g.dir, map);
             if edges && map == 0 && m.other > 0 {
                 near_edge = true;
             } else {

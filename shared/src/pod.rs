@@ -181,6 +181,9 @@ pub const RENDER_PHOTON_DIRECT: u32 = 4;
 /// bounce, the final gather) instead of leaving the camera; emission they hit does not count
 /// (shadow rays and the caustic map at the first gather point have counted it).
 pub const RENDER_CONTINUE: u32 = 8;
+/// Each pixel's numbers come from its own scrambled Sobol sequence (`sampler`), sample
+/// `sample_base + s` for the dispatch's sample s, instead of independent random numbers.
+pub const RENDER_SOBOL: u32 = 16;
 
 /// Push constants of the renderer's kernels (camera rays, path steps, accumulation).
 #[repr(C)]
@@ -209,8 +212,12 @@ pub struct RenderParams {
     /// Samples per pixel in this dispatch: `count` = pixels × `samples`, path i being sample
     /// i / pixels of pixel i % pixels (0 counts as 1).
     pub samples: u32,
-    /// Padding to a 16-byte multiple.
-    pub _pad: [u32; 2],
+    /// With `RENDER_SOBOL`: the index, in each pixel's sequence, of the dispatch's first
+    /// sample (e.g. pass × eye samples per pass).
+    pub sample_base: u32,
+    /// With `RENDER_SOBOL`: the seed of the pixels' scrambles, the same for every dispatch of
+    /// one render (so that its samples continue one sequence per pixel).
+    pub sequence: u32,
 }
 
 impl RenderParams {
@@ -317,6 +324,9 @@ impl PathState {
 /// (everything from the photon map); otherwise only those that bounced before (shadow rays
 /// give direct light).
 pub const PHOTON_STORE_DIRECT: u32 = 1;
+/// `PhotonParams::flags`: photons draw from the render's scrambled Sobol sequences
+/// (`sampler::Sampler::photon`, `photon_group`) instead of independent random numbers.
+pub const PHOTON_SOBOL: u32 = 2;
 
 /// Push constants of the photon tracing kernels (`photon`).
 #[repr(C)]
@@ -347,12 +357,13 @@ pub struct PhotonParams {
     /// Photons that reached a diffuse surface through specular bounces only go to the caustic
     /// map (1) or to the global one (0).
     pub caustic_map: u32,
-    /// Padding: aligns `bounds_min` to 16 bytes.
-    pub _pad: u32,
+    /// The pass's index (with `PHOTON_SOBOL`: where its photons start in the sequences).
+    pub pass: u32,
     /// The scene box (the kd-tree's root cell) for `photon::trace_photon`.
     pub bounds_min: [f32; 3],
-    /// Padding: aligns `bounds_max` to 16 bytes.
-    pub _pad1: u32,
+    /// With `PHOTON_SOBOL`: the seed of the render's photon sequences' scrambles (the same for
+    /// every pass).
+    pub sequence: u32,
     /// Maximum corner of the scene box.
     pub bounds_max: [f32; 3],
     /// Padding to a 16-byte multiple.

@@ -12,7 +12,8 @@ use crate::pod::{
     RENDER_CONTINUE, RENDER_JITTER,
 };
 use crate::ray::Ray;
-use crate::rng::{pcg_hash, Rng};
+use crate::rng::Rng;
+use crate::sampler::{Sampler, DIM_CAMERA, DIM_RESUME};
 use crate::shade;
 
 /// Path `i` of the batch (sample i / pixels of pixel i % pixels): its primary ray and a fresh
@@ -33,8 +34,8 @@ pub fn camera_sample(i: u32, p: &RenderParams) -> (Ray, PathState) {
     let pixel = camera::pixel(&p.camera, p.first + i % b);
     let stream = pixel.wrapping_add((i / b).wrapping_mul(p.camera.width * p.camera.height));
     let ray = if p.flags & RENDER_JITTER != 0 {
-        let mut rng = Rng::new(p.seed ^ 0x6A09_E667, stream);
-        camera::jittered_ray(&p.camera, pixel, rng.next_f32(), rng.next_f32())
+        let u = Sampler::new(p, stream).get2(DIM_CAMERA);
+        camera::jittered_ray(&p.camera, pixel, u[0], u[1])
     } else {
         camera::primary_ray(&p.camera, pixel)
     };
@@ -44,17 +45,17 @@ pub fn camera_sample(i: u32, p: &RenderParams) -> (Ray, PathState) {
 /// A path at a gather point `point` (`shade::gather_point`) continued by one cosine-weighted
 /// diffuse bounce from it: the final gather. Its throughput (which holds albedo/π there) times
 /// π, the cosine and the pdf cos/π cancelling; the radiance it has gathered is kept. A path
-/// that did not end at a gather point stays ended. Random numbers come from the stream of
-/// (hash of `p.seed`, pixel), apart from every bounce's (`shade::path_step` keys bounce b by
-/// `p.seed ^ b · 0x9E37_79B9`).
+/// that did not end at a gather point stays ended. Its direction takes the path's sampler's
+/// dimension `DIM_RESUME` (the bounces after it have dimensions of their own,
+/// `sampler::dim(_, _, true)`).
 #[inline(always)]
 pub fn resume(p: &RenderParams, point: &Ray, path: &PathState) -> (Ray, PathState) {
     if path.flags & PATH_GATHER == 0 {
         return (shade::NO_RAY, PathState { flags: 0, ..*path });
     }
-    let mut rng = Rng::new(pcg_hash(p.seed ^ 0x5BD1_E995), path.pixel);
+    let u = Sampler::new(p, path.pixel).get2(DIM_RESUME);
     let n = point.dir;
-    let d = cosine_direction(n, rng.next_f32(), rng.next_f32());
+    let d = cosine_direction(n, u[0], u[1]);
     let next = PathState {
         throughput: scale3(path.throughput, core::f32::consts::PI),
         flags: PATH_ACTIVE | (1 << PATH_DIFFUSE_SHIFT),

@@ -24,7 +24,7 @@ use crate::pod::{
     PATH_ACTIVE, PATH_DIFFUSE_SHIFT, PATH_GATHER, PATH_SPECULAR, RENDER_CONTINUE, RENDER_GATHER, RENDER_PHOTON_DIRECT,
 };
 use crate::ray::Ray;
-use crate::rng::Rng;
+use crate::sampler::{self, Sampler};
 
 /// 1/π: the Lambertian BRDF per unit albedo.
 pub const INV_PI: f32 = core::f32::consts::FRAC_1_PI;
@@ -73,16 +73,22 @@ fn pick_light(lights: &[Light], n: usize, u: f32, power: bool) -> usize {
     i
 }
 
-/// Light `i` for direct lighting (selection number `u`) and its selection probability.
+/// Light `i` chosen by selection number `u` (by the running sums `cdf`, or `power_cdf` for
+/// emission by power), its selection probability, and `u` rescaled to [0, 1) within the
+/// light's share, (u − before) / probability: a number as uniform as `u` and independent of the
+/// choice, so one stratified number both chooses the light and goes on to place the point.
 #[inline(always)]
-pub fn choose_light(lights: &[Light], n: u32, u: f32, power: bool) -> (usize, f32) {
+pub fn choose_light(lights: &[Light], n: u32, u: f32, power: bool) -> (usize, f32, f32) {
     let i = pick_light(lights, n as usize, u, power);
     let (cur, prev) = if power {
         (lights[i].power_cdf, if i == 0 { 0.0 } else { lights[i - 1].power_cdf })
     } else {
         (lights[i].cdf, if i == 0 { 0.0 } else { lights[i - 1].cdf })
     };
-    (i, cur - prev)
+    let p = cur - prev;
+    // Below 1: the quotient may round up to it.
+    let rest = if p > 0.0 { ((u - prev) / p).max(0.0).min(0.999_999_94) } else { 0.0 };
+    (i, p, rest)
 }
 
 /// A spot light's intensity factor toward unit direction `w` (leaving the light): 1 inside the
@@ -102,17 +108,18 @@ pub fn spot_falloff(light: &Light, w: [f32; 3]) -> f32 {
 }
 
 /// Next-event estimation at diffuse point `p` (normal `n` facing the arriving ray, albedo
-/// `albedo`): a shadow ray toward a point sampled on one light (3 numbers of `rng`) and the
-/// reflected radiance it brings if unoccluded. `NO_RAY` and 0 when nothing can arrive.
+/// `albedo`): a shadow ray toward a point on one light, chosen and placed by the two numbers
+/// `u` (the first picks the light and, rescaled to its share, goes on to place the point, so
+/// stratified numbers stay stratified on each light), and the reflected radiance it brings if
+/// unoccluded. `NO_RAY` and 0 when nothing can arrive.
 #[inline(always)]
-pub fn light_sample(rng: &mut Rng, p: [f32; 3], n: [f32; 3], albedo: [f32; 3], lights: &[Light], light_count: u32) -> (Ray, [f32; 3]) {
+pub fn light_sample(u: [f32; 2], p: [f32; 3], n: [f32; 3], albedo: [f32; 3], lights: &[Light], light_count: u32) -> (Ray, [f32; 3]) {
     if light_count == 0 {
         return (NO_RAY, [0.0; 3]);
     }
-    let (li, p_select) = choose_light(lights, light_count, rng.next_f32(), false);
+    let (li, p_select, u1) = choose_light(lights, light_count, u[0], false);
     let light = &lights[li];
-    let u1 = rng.next_f32();
-    let u2 = rng.next_f32();
+    let u2 = u[1];
     let (target, radiance_geom) = if light.kind == LIGHT_POINT {
         (light.p0, scale3(light.emission, 1.0 / p_select))
     } else if light.kind == LIGHT_SPOT {
@@ -198,8 +205,8 @@ fn end(path: &mut PathState, ray: &mut Ray) {
 /// bounce) is shaded with one shadow ray and then continues, ends, or becomes a gather point.
 /// Returns the shadow ray (`NO_RAY` if none) and the terms to `accumulate`, weighted by the
 /// path's throughput. A path that ends leaves `NO_RAY` in `ray` (a gather point, see
-/// `gather_point`), so later bounces trace nothing for it. Random numbers come from the stream
-/// of (`p.seed`, bounce, pixel).
+/// `gather_point`), so later bounces trace nothing for it. Numbers come from the path's
+/// `Sampler`, dimensions of their own per bounce and use (`sampler::dim`).
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 pub fn path_step(
@@ -227,11 +234,12 @@ pub fn path_step(
     if path.flags & PATH_SPECULAR != 0 && p.flags & RENDER_CONTINUE == 0 && dot3(geometric_normal(tri), ray.dir) < 0.0 {
         terms.base = mul3(path.throughput, mat.emission);
     }
-    // Each bounce draws from its own random stream.
-    let mut rng = Rng::new(p.seed ^ bounce.wrapping_mul(0x9E37_79B9), path.pixel);
+    // Each bounce draws from dimensions of its own.
+    let smp = Sampler::new(p, path.pixel);
+    let continued = p.flags & RENDER_CONTINUE != 0;
     let (pt, n) = surface_point(tri, hit, ray);
     if is_specular(mat) && bounce < p.max_bounces {
-        *ray = specular_bounce(mat, tri, pt, ray.dir, rng.next_f32());
+        *ray = specular_bounce(mat, tri, pt, ray.dir, smp.get1(sampler::dim(bounce, sampler::FRESNEL, continued)));
         if mat.flags & MAT_MIRROR != 0 {
             path.throughput = mul3(path.throughput, mat.diffuse);
         }
@@ -241,7 +249,8 @@ pub fn path_step(
     let gather = p.flags & RENDER_GATHER != 0;
     let mut shadow = NO_RAY;
     if !(gather && p.flags & RENDER_PHOTON_DIRECT != 0) {
-        let (s, direct) = light_sample(&mut rng, pt, n, mat.diffuse, lights, p.light_count);
+        let u = smp.get2(sampler::dim(bounce, sampler::LIGHT, continued));
+        let (s, direct) = light_sample(u, pt, n, mat.diffuse, lights, p.light_count);
         shadow = s;
         terms.direct = mul3(path.throughput, direct);
     }
@@ -253,8 +262,9 @@ pub fn path_step(
     } else if diffuse < p.diffuse_bounces && bounce < p.max_bounces {
         let a = mat.diffuse;
         let q = a[0].max(a[1]).max(a[2]).min(1.0);
-        if rng.next_f32() < q {
-            let d = cosine_direction(n, rng.next_f32(), rng.next_f32());
+        if smp.get1(sampler::dim(bounce, sampler::ROULETTE, continued)) < q {
+            let u = smp.get2(sampler::dim(bounce, sampler::BOUNCE, continued));
+            let d = cosine_direction(n, u[0], u[1]);
             *ray = Ray::new(offset(pt, n), d, 0.0, f32::INFINITY);
             path.throughput = mul3(path.throughput, scale3(a, 1.0 / q));
             path.flags = PATH_ACTIVE | ((diffuse + 1) << PATH_DIFFUSE_SHIFT);

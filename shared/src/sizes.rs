@@ -44,3 +44,5 @@ layout! {
 // The BVH node: five 16-byte vectors (`UVec4`: 16-byte aligned in SPIR-V, 4 natively; its
 // offsets are multiples of 16 either way).
 const _: () = assert!(core::mem::size_of::<crate::bvh::BvhNode>() == 80, "size_of::<BvhNode>() is not 80");
+// A photon's gather word: one 16-byte vector.
+const _: () = assert!(core::mem::size_of::<crate::photon::PhotonWord>() == 16, "size_of::<PhotonWord>() is not 16");

@@ -21,6 +21,30 @@ pub trait Progress {
 
 impl Progress for () {}
 
+/// Where an eye path's numbers (pixel jitter, light samples, bounce directions, Russian
+/// roulette, glass) come from (`kdray_shared::sampler`).
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Default)]
+pub enum SamplerKind {
+    /// Independent random numbers: plain Monte Carlo.
+    Independent,
+    /// Each pixel's own Owen-scrambled Sobol sequence, continued over samples and passes:
+    /// the same expectation, with the samples of a pixel stratified in every pair of
+    /// dimensions (lower error at equal samples wherever the integrand is not noise-like:
+    /// edges, soft shadows, smooth indirect light).
+    #[default]
+    Sobol,
+}
+
+impl SamplerKind {
+    /// The `RENDER_*` flag it sets.
+    pub fn flags(self) -> u32 {
+        match self {
+            SamplerKind::Independent => 0,
+            SamplerKind::Sobol => kdray_shared::RENDER_SOBOL,
+        }
+    }
+}
+
 /// Result of a render: per-pixel primary hit and linear RGB radiance (row-major, top row first).
 #[derive(Clone, Debug)]
 pub struct RenderOutput {

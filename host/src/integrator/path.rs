@@ -8,7 +8,7 @@
 //! instead). Only what the scene needs runs: no bounces without specular surfaces or diffuse
 //! bounces, no shadow queries without lights. Batches alternate between two sets of buffers,
 //! so the GPU renders one while the host reads the last.
-use super::{Progress, RenderOutput};
+use super::{Progress, RenderOutput, SamplerKind};
 use crate::accel::Accel;
 use crate::kernels::{Accumulate, CameraRays, ContinuePaths, Film, PathStep, TracePaths};
 use crate::runtime::{cast, Buffer, Kernel};
@@ -33,17 +33,19 @@ pub struct PathOptions {
     pub jitter: bool,
     /// Whole paths in one kernel where there is one (else a pass per bounce and query).
     pub fused: bool,
+    /// Where the paths' numbers come from.
+    pub sampler: SamplerKind,
 }
 
 impl PathOptions {
     /// Direct lighting: one sample through each pixel centre, `bounces` specular bounces.
     pub fn direct(seed: u32, bounces: u32) -> Self {
-        PathOptions { seed, bounces, diffuse_bounces: 0, spp: 1, jitter: false, fused: true }
+        PathOptions { seed, bounces, diffuse_bounces: 0, spp: 1, jitter: false, fused: true, sampler: SamplerKind::Sobol }
     }
     /// Path tracing with next-event estimation: `spp` jittered samples, paths up to `bounces`
     /// long.
     pub fn path(seed: u32, bounces: u32, spp: u32) -> Self {
-        PathOptions { seed, bounces, diffuse_bounces: bounces, spp, jitter: true, fused: true }
+        PathOptions { seed, bounces, diffuse_bounces: bounces, spp, jitter: true, fused: true, sampler: SamplerKind::Sobol }
     }
 }
 
@@ -93,8 +95,9 @@ impl FrameBuffers {
     }
 }
 
-/// Parameters of sample group `sample` (one sample per pixel) of the batch of pixels
-/// `first..first + count` (in the camera's ray order); `with_samples` makes it several.
+/// Parameters of sample group `sample` (one sample per pixel, the pixels' `sample`-th) of the
+/// batch of pixels `first..first + count` (in the camera's ray order); `with_samples` makes it
+/// several (then set `sample_base`).
 pub fn params(t: &Tracer, cam: &Camera, o: &PathOptions, first: usize, count: usize, sample: u32) -> RenderParams {
     let bounces_needed = t.has_specular || o.diffuse_bounces > 0;
     RenderParams {
@@ -105,11 +108,12 @@ pub fn params(t: &Tracer, cam: &Camera, o: &PathOptions, first: usize, count: us
         bounce: 0,
         max_bounces: if bounces_needed { o.bounces } else { 0 },
         diffuse_bounces: o.diffuse_bounces,
-        flags: if o.jitter { RENDER_JITTER } else { 0 },
+        flags: if o.jitter { RENDER_JITTER } else { 0 } | o.sampler.flags(),
         camera: *cam,
         sample,
         samples: 1,
-        _pad: [0; 2],
+        sample_base: sample,
+        sequence: pcg_hash(o.seed ^ 0x5EC0_5EC0),
     }
 }
 
@@ -218,7 +222,7 @@ pub fn render(t: &Tracer, accel: Accel, cam: &Camera, o: &PathOptions, progress:
         let mut recorded = 0;
         for g in 0..groups {
             let s = per_dispatch.min(o.spp - g * per_dispatch);
-            let p = with_samples(params(t, cam, o, first, count, g), s);
+            let p = RenderParams { sample_base: g * per_dispatch, ..with_samples(params(t, cam, o, first, count, g), s) };
             for k in eye_passes(t, accel, &p, fb, o.fused)? {
                 rt.dispatch(&mut c, k.as_ref())?;
                 recorded += 1;

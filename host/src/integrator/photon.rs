@@ -14,25 +14,28 @@
 //!    second point, where every photon (direct ones included) gives the light.
 //!
 //! The radius shrinks from pass to pass, r²ᵢ₊₁ = r²ᵢ (i + α)/(i + 1), so the average of the
-//! passes converges to the right answer; memory does not grow with the number of passes. The
-//! record buffer is sized from the first pass and grows (the pass is traced again: passes are
-//! deterministic) should a later pass store more.
+//! passes converges to the right answer; memory does not grow with the number of passes. A
+//! pass is one submission; the record buffer is sized with a margin and grows should a pass
+//! store more, which the host sees one pass late (the render then goes back to its last
+//! checkpoint: passes are deterministic, so the image is the same).
 use super::path::{self, FrameBuffers, PathOptions};
-use super::{Progress, RenderOutput};
+use super::{Progress, RenderOutput, SamplerKind};
 use crate::accel::Accel;
 use crate::kdtree::KdTreeData;
 use crate::kernels::{EmitPhotons, Film, Gather, IndexBinds, PermutePhotons, PhotonBounce, PhotonKeys, TracePhotons};
-use crate::runtime::{cast, Buffer, Kernel, Runtime};
+use crate::runtime::{cast, Buffer, Kernel, Pending, Runtime};
 use crate::sort::CountingSort;
 use crate::tracer::{LeafLists, Tracer};
 use crate::error::{bail, err, Result};
 use kdray_shared::kdtree::KdNode;
+use kdray_shared::photon::PhotonWord;
 use kdray_shared::query::Closest;
 use kdray_shared::rng::pcg_hash;
 use kdray_shared::{
     Camera, Hit, IndexParams, LeafCells, Photon, PhotonParams, PhotonPath, Ray, RenderParams, FILTER_CONSTANT, GATHER_EDGES, GATHER_SKIP_DIRECT, INDEX_GRID, INDEX_KD,
-    PHOTON_STORE_DIRECT, RENDER_CONTINUE, RENDER_GATHER, RENDER_JITTER, RENDER_PHOTON_DIRECT,
+    PHOTON_SOBOL, PHOTON_STORE_DIRECT, RENDER_CONTINUE, RENDER_GATHER, RENDER_JITTER, RENDER_PHOTON_DIRECT,
 };
+use std::collections::VecDeque;
 use std::time::Instant;
 
 /// Which photon index: the paper's kd-tree leaves subdivided to about the radius, or a hashed
@@ -82,7 +85,8 @@ pub struct PhotonOptions {
     pub photons: u32,
     /// Passes (each: new photons, one eye sample per pixel, a smaller radius).
     pub passes: u32,
-    /// Stop after the pass that ends past this many seconds.
+    /// Stop after the pass that ends past this many seconds (and the one already submitted
+    /// behind it).
     pub time_limit: Option<f64>,
     /// Seconds between checkpoints: after a pass that ends this long after the last one, the
     /// film is read back, so that a pass that fails (a lost device, say) loses only the passes
@@ -120,6 +124,12 @@ pub struct PhotonOptions {
     pub eye_samples: u32,
     /// The render's seed: each pass's photons and eye samples derive from it and the pass index.
     pub seed: u32,
+    /// Where the eye paths' numbers come from (each pixel's Sobol sequence runs on over the
+    /// passes).
+    pub sampler: SamplerKind,
+    /// Where the photons' numbers come from (with `Sobol`, the coherent groups' emission
+    /// samples and the photons' bounces run on over the passes as sequences of the render).
+    pub photon_sampler: SamplerKind,
 }
 
 impl Default for PhotonOptions {
@@ -143,6 +153,8 @@ impl Default for PhotonOptions {
             eye_bounces: 16,
             eye_samples: 4,
             seed: 1,
+            sampler: SamplerKind::Sobol,
+            photon_sampler: SamplerKind::Sobol,
         }
     }
 }
@@ -192,8 +204,10 @@ pub struct PhotonMap<'t> {
     lists: Option<LeafLists>,
     /// The last traced pass's stored photons, in slot order (`capacity` slots).
     pub records: Buffer<Photon>,
-    /// The records in cell order, after `record_index`.
-    pub sorted: Buffer<Photon>,
+    /// The records' positions and packed words in cell order, after `record_index`.
+    pub sorted: Buffer<PhotonWord>,
+    /// Their powers, in the same order.
+    pub sorted_powers: Buffer<u32>,
     /// One word: the photons the last trace stored, including those past `capacity` (counted,
     /// not stored).
     pub counter: Buffer<u32>,
@@ -304,6 +318,7 @@ impl<'t> PhotonMap<'t> {
             lists: t.leaf_lists(accel, split)?,
             records: rt.alloc("photon", capacity as usize)?,
             sorted: rt.alloc("sorted photon", capacity as usize)?,
+            sorted_powers: rt.alloc("sorted photon power", capacity as usize)?,
             counter: rt.alloc("photon counter", 1)?,
             keys: rt.alloc("photon cell", capacity as usize)?,
             order: rt.alloc("photon order", capacity as usize)?,
@@ -336,6 +351,7 @@ impl<'t> PhotonMap<'t> {
         let capacity = (stored as u64 * 5 / 4).min(u32::MAX as u64 / 2) as u32;
         self.records = rt.alloc("photon", capacity as usize)?;
         self.sorted = rt.alloc("sorted photon", capacity as usize)?;
+        self.sorted_powers = rt.alloc("sorted photon power", capacity as usize)?;
         self.keys = rt.alloc("photon cell", capacity as usize)?;
         self.order = rt.alloc("photon order", capacity as usize)?;
         self.capacity = capacity;
@@ -363,7 +379,10 @@ impl<'t> PhotonMap<'t> {
             light_count: self.t.light_count,
             bounce: 0,
             max_bounces: self.o.photon_bounces,
-            flags: if self.o.photon_direct || self.o.final_gather != FinalGather::Off { PHOTON_STORE_DIRECT } else { 0 },
+            flags: if self.o.photon_direct || self.o.final_gather != FinalGather::Off { PHOTON_STORE_DIRECT } else { 0 }
+                | if self.o.photon_sampler == SamplerKind::Sobol { PHOTON_SOBOL } else { 0 },
+            pass,
+            sequence: pcg_hash(self.o.seed ^ 0x9407_0145),
             capacity: self.capacity,
             spread: self.o.spread,
             caustic_map: (self.maps > 1) as u32,
@@ -483,7 +502,8 @@ impl<'t> PhotonMap<'t> {
             self.sort.record(c, &self.keys, self.capacity, &self.order)?;
         }
         if steps > 2 {
-            rt.dispatch(c, &PermutePhotons { params: p, photons: &self.records, order: &self.order, offsets: &self.sort.offsets, sorted: &self.sorted })?;
+            let k = PermutePhotons { params: p, photons: &self.records, order: &self.order, offsets: &self.sort.offsets, words: &self.sorted, powers: &self.sorted_powers };
+            rt.dispatch(c, &k)?;
         }
         Ok(())
     }
@@ -515,7 +535,8 @@ impl<'t> PhotonMap<'t> {
             params,
             index: self.index_binds(),
             rays: &fb.rays,
-            photons: &self.sorted,
+            words: &self.sorted,
+            powers: &self.sorted_powers,
             offsets: &self.sort.offsets,
             paths: &fb.paths,
         }
@@ -594,18 +615,22 @@ impl<'t> PhotonMap<'t> {
     pub fn read_index(&self) -> Result<(Vec<Photon>, Vec<u32>)> {
         let offsets = self.t.rt.read(&self.sort.offsets, (self.cells * self.maps) as usize + 1)?;
         let n = *offsets.last().unwrap() as usize;
-        Ok((self.t.rt.read(&self.sorted, n)?, offsets))
+        let (words, powers) = (self.t.rt.read(&self.sorted, n)?, self.t.rt.read(&self.sorted_powers, n)?);
+        Ok((words.iter().zip(powers).map(|(w, p)| w.photon(p)).collect(), offsets))
     }
 }
 
 /// Eye-path parameters of pass `pass`: `o.eye_samples` jittered samples per pixel, ending at
 /// gather points.
 pub fn eye_params(t: &Tracer, cam: &Camera, o: &PhotonOptions, first: usize, count: usize, pass: u32) -> RenderParams {
-    let po = PathOptions { seed: pass_seed(o.seed ^ 0x0E7E_0E7E, pass), bounces: o.eye_bounces, diffuse_bounces: 0, spp: 1, jitter: true, fused: o.fused };
+    let po = PathOptions { seed: pass_seed(o.seed ^ 0x0E7E_0E7E, pass), bounces: o.eye_bounces, diffuse_bounces: 0, spp: 1, jitter: true, fused: o.fused, sampler: o.sampler };
     let mut p = path::params(t, cam, &po, first, count, 0);
     p.seed = po.seed;
     p.sample = pass;
-    p.flags = RENDER_JITTER | RENDER_GATHER | if o.photon_direct { RENDER_PHOTON_DIRECT } else { 0 };
+    // One sequence per pixel over the whole render: pass k's samples follow pass k − 1's.
+    p.sample_base = pass.wrapping_mul(o.eye_samples);
+    p.sequence = pcg_hash(o.seed ^ 0x0E7E_5EC0);
+    p.flags = RENDER_JITTER | RENDER_GATHER | if o.photon_direct { RENDER_PHOTON_DIRECT } else { 0 } | o.sampler.flags();
     path::with_samples(p, o.eye_samples)
 }
 
@@ -641,11 +666,19 @@ fn record_eye<'a>(c: &mut crate::runtime::Commands, map: &'a PhotonMap, p: &Rend
 
 /// Renders `cam`'s image by progressive photon mapping; `progress` counts passes.
 ///
+/// Each pass is one submission: its photons traced and indexed, its eye samples gathered into
+/// the film, and its photon count read back. The count is checked while the next pass runs,
+/// so the device never waits for the host between passes. A pass whose photons did not fit
+/// the records (rare: the records are sized from the first pass with a margin) lost photons:
+/// the records grow and the render goes back to the last checkpoint (or the start), whose film
+/// is written back — passes are deterministic, so the image is the same as if they had fit.
+///
 /// The film is read back at checkpoints (`PhotonOptions::checkpoint_seconds`). If a pass fails
 /// after one, the render returns the image of the passes up to it, with the error in
 /// `PhotonStats::interrupted`; a failure before the first checkpoint is an error.
 pub fn render(map: &mut PhotonMap, cam: &Camera, progress: &dyn Progress) -> Result<(RenderOutput, PhotonStats)> {
     let t = map.t;
+    let rt = t.rt;
     let accel = map.accel;
     let n = (cam.width * cam.height) as usize;
     let e = map.o.eye_samples as usize;
@@ -655,45 +688,81 @@ pub fn render(map: &mut PhotonMap, cam: &Camera, progress: &dyn Progress) -> Res
     progress.start(map.o.passes as u64);
     let start = Instant::now();
     let mut stats = PhotonStats::default();
-    // The last checkpoint: its image and statistics, and when it was taken.
-    let mut saved: Option<(RenderOutput, PhotonStats)> = None;
+    // The last checkpoint, and when it was taken.
+    let mut saved: Option<Checkpoint> = None;
     let mut saved_at = 0.0;
     // A failure: the last checkpoint with what failed, or the error if there is none.
-    let fail = |saved: Option<(RenderOutput, PhotonStats)>, what: String, e: crate::Error| match saved {
-        Some((out, mut st)) => {
+    let fail = |saved: Option<Checkpoint>, what: String, e: crate::Error| match saved {
+        Some(cp) => {
+            let mut st = cp.stats;
             st.interrupted = Some(format!("{what}: {e}"));
             st.seconds = start.elapsed().as_secs_f64();
-            Ok((out, st))
+            Ok((cp.out, st))
         }
         None => Err(e),
     };
-    for pass in 0..map.o.passes {
-        let last = pass + 1 == map.o.passes;
-        let stored = match render_pass(map, cam, pass, &batches, &fbs) {
-            Ok(stored) => stored,
-            Err(e) => return fail(saved, format!("pass {pass} failed"), e),
+    // The next pass to submit; the passes submitted and not yet checked (at most two: the
+    // device runs one while the host waits for the other's count), oldest first; whether the
+    // render is complete once they are checked.
+    let mut next = 0u32;
+    let mut flight: VecDeque<(u32, Pending)> = VecDeque::new();
+    let mut done = false;
+    loop {
+        let secs = start.elapsed().as_secs_f64();
+        // A checkpoint reads the film of checked passes alone: nothing new goes in flight
+        // while one is due.
+        let checkpoint_due = stats.passes > 0 && secs - saved_at >= map.o.checkpoint_seconds;
+        if !done && next < map.o.passes && flight.len() < 2 && !(checkpoint_due && !flight.is_empty()) {
+            match submit_pass(map, cam, next, &batches, &fbs) {
+                Ok(p) => flight.push_back((next, p)),
+                Err(e) => return fail(saved, format!("pass {next} failed"), e),
+            }
+            next += 1;
+            if flight.len() < 2 && !checkpoint_due && next < map.o.passes {
+                continue;
+            }
+        }
+        let Some((k, p)) = flight.pop_front() else { break };
+        let stored = match rt.wait(p) {
+            Ok(v) => v[0],
+            Err(e) => return fail(saved, format!("pass {k} failed"), e),
         };
+        if stored > map.capacity {
+            // Pass k lost photons (the one after it may have too): grow the records and go
+            // back to the last checkpoint's film.
+            flight.clear();
+            let restart = rt.finish().and_then(|_| map.grow(stored)).and_then(|_| restore(t, &fbs, saved.as_ref()));
+            if let Err(e) = restart {
+                return fail(saved, format!("growing the photon records after pass {k} failed"), e);
+            }
+            (next, stats) = match &saved {
+                Some(cp) => (cp.stats.passes, cp.stats.clone()),
+                None => (0, PhotonStats::default()),
+            };
+            done = false;
+            continue;
+        }
         stats.passes += 1;
         stats.emitted += map.o.photons as u64;
         stats.stored += stored as u64;
-        stats.last_radius = pass_radius(map.r0, map.o.alpha, pass);
+        stats.last_radius = pass_radius(map.r0, map.o.alpha, k);
         progress.advance(1);
         let secs = start.elapsed().as_secs_f64();
         progress.status(&format!("{:.1} M photons/s", stats.emitted as f64 / secs / 1e6));
-        let done = last || map.o.time_limit.is_some_and(|l| secs >= l);
-        if !done && secs - saved_at >= map.o.checkpoint_seconds {
+        done |= k + 1 == map.o.passes || map.o.time_limit.is_some_and(|l| secs >= l);
+        if !done && flight.is_empty() && secs - saved_at >= map.o.checkpoint_seconds {
             match read_film(t, cam, &batches, &fbs) {
-                Ok(out) => saved = Some((out, stats.clone())),
-                Err(e) => return fail(saved, format!("reading back the image after pass {pass} failed"), e),
+                Ok((out, films)) => saved = Some(Checkpoint { films, out, stats: stats.clone() }),
+                Err(e) => return fail(saved, format!("reading back the image after pass {k} failed"), e),
             }
             saved_at = secs;
         }
-        if done {
+        if done && flight.is_empty() {
             break;
         }
     }
     match read_film(t, cam, &batches, &fbs) {
-        Ok(out) => {
+        Ok((out, _)) => {
             stats.seconds = start.elapsed().as_secs_f64();
             Ok((out, stats))
         }
@@ -701,34 +770,59 @@ pub fn render(map: &mut PhotonMap, cam: &Camera, progress: &dyn Progress) -> Res
     }
 }
 
-/// One pass: photons traced and indexed, then every batch's eye samples gathered into its
-/// film. Returns the photons stored.
-fn render_pass(map: &mut PhotonMap, cam: &Camera, pass: u32, batches: &[(usize, usize)], fbs: &[FrameBuffers]) -> Result<u32> {
+/// A checkpoint of a photon render: the film's sums per batch (to restore), its image and the
+/// statistics of the passes in it.
+struct Checkpoint {
+    films: Vec<Vec<[f32; 4]>>,
+    out: RenderOutput,
+    stats: PhotonStats,
+}
+
+/// Writes a checkpoint's film back (or leaves it: pass 0 overwrites the film).
+fn restore(t: &Tracer, fbs: &[FrameBuffers], saved: Option<&Checkpoint>) -> Result<()> {
+    if let Some(cp) = saved {
+        for (fb, film) in fbs.iter().zip(&cp.films) {
+            t.rt.write(&fb.radiance, film)?;
+        }
+    }
+    Ok(())
+}
+
+/// Submits pass `pass` whole: photons traced and indexed, every batch's eye samples gathered
+/// into its film, and the photons stored read back (to check against the records' capacity).
+fn submit_pass(map: &mut PhotonMap, cam: &Camera, pass: u32, batches: &[(usize, usize)], fbs: &[FrameBuffers]) -> Result<Pending> {
     let (t, rt) = (map.t, map.t.rt);
-    let stored = map.trace_and_index(pass)?;
+    map.prepare_index(pass)?;
     let mut c = rt.begin();
+    map.record_trace(&mut c, pass)?;
+    map.record_index(&mut c, pass)?;
     for (&(first, count), fb) in batches.iter().zip(fbs) {
         let p = eye_params(t, cam, &map.o, first, count, pass);
         record_eye(&mut c, map, &p, pass, fb)?;
         rt.dispatch(&mut c, &Film { params: p, paths: &fb.paths, radiance: &fb.radiance })?;
     }
+    let pending = rt.read_back_of(&mut c, &map.counter, 1)?;
     rt.submit(c)?;
-    Ok(stored)
+    Ok(pending)
 }
 
-/// The image so far: every batch's primary hits and film, read back.
-fn read_film(t: &Tracer, cam: &Camera, batches: &[(usize, usize)], fbs: &[FrameBuffers]) -> Result<RenderOutput> {
+/// The image so far, and the film's sums per batch: every batch's primary hits and film, read
+/// back.
+fn read_film(t: &Tracer, cam: &Camera, batches: &[(usize, usize)], fbs: &[FrameBuffers]) -> Result<(RenderOutput, Vec<Vec<[f32; 4]>>)> {
     let rt = t.rt;
     let mut out = RenderOutput::new(cam.width, cam.height);
     let mut c = rt.begin();
     let pending: Vec<_> = batches
         .iter()
         .zip(fbs)
-        .map(|(&(_, count), fb)| Ok((rt.read_back_of(&mut c, &fb.primary_hits, count)?, rt.read_back_of(&mut c, &fb.radiance, count)?)))
+        .map(|(&(_, count), fb)| Ok((rt.read_back_of(&mut c, &fb.primary_hits, count)?, rt.read_back_of(&mut c, &fb.radiance, fb.radiance.len())?)))
         .collect::<Result<_>>()?;
     rt.submit(c)?;
-    for ((first, _), (h, r)) in batches.iter().zip(pending) {
-        path::place(&mut out, cam, *first, cast(rt.wait(h)?), cast(rt.wait(r)?));
+    let mut films = Vec::with_capacity(batches.len());
+    for ((first, count), (h, r)) in batches.iter().zip(pending) {
+        let film: Vec<[f32; 4]> = cast(rt.wait(r)?);
+        path::place(&mut out, cam, *first, cast(rt.wait(h)?), film[..*count].to_vec());
+        films.push(film);
     }
-    Ok(out)
+    Ok((out, films))
 }

@@ -3,6 +3,7 @@ use kdray::accel::Accel;
 use kdray::gpu::{self, Gpu};
 use kdray::image_out::{compare, write_png};
 use kdray::integrator::path::{self, PathOptions};
+use kdray::integrator::SamplerKind;
 use kdray::integrator::photon::{self as pm, FinalGather, IndexKind, PhotonMap, PhotonOptions};
 use kdray::kdtree::{self, BuildOptions, KdTreeData};
 use kdray::runtime::cpu::NATIVE;
@@ -42,6 +43,23 @@ pub enum IndexArg {
     Grid,
     /// The geometry kd-tree's leaves subdivided to about 2r (Frolov & Ignatenko).
     Kd,
+}
+
+#[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
+pub enum SamplerArg {
+    /// Each pixel's own Owen-scrambled Sobol sequence, over samples and passes.
+    Sobol,
+    /// Independent random numbers.
+    Independent,
+}
+
+impl SamplerArg {
+    fn kind(self) -> SamplerKind {
+        match self {
+            SamplerArg::Sobol => SamplerKind::Sobol,
+            SamplerArg::Independent => SamplerKind::Independent,
+        }
+    }
 }
 
 #[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
@@ -151,6 +169,16 @@ pub enum Command {
         /// Random stream of the light samples.
         #[arg(long, default_value_t = 1)]
         seed: u32,
+        /// Where the eye paths' numbers come from (path, photon, direct): `sobol` (each
+        /// pixel's scrambled Sobol sequence, continued over samples and passes: stratified)
+        /// or `independent` (plain Monte Carlo).
+        #[arg(long, value_enum, default_value = "sobol")]
+        sampler: SamplerArg,
+        /// Where the photons' numbers come from (photon): `sobol` (the render's scrambled
+        /// Sobol sequences over the coherent groups' emission and the photons' bounces,
+        /// continued over the passes) or `independent`.
+        #[arg(long, value_enum, default_value = "sobol")]
+        photon_sampler: SamplerArg,
         #[arg(long, short, default_value = "render.png")]
         out: PathBuf,
         /// Also render on the other device, write `<out>-cpu.png`, and report how the two differ.
@@ -449,6 +477,8 @@ pub fn run(cli: Cli) -> Result<()> {
             filter,
             grid_window,
             split_passes,
+            sampler,
+            photon_sampler,
             build,
         } => {
             let opts = build.options()?;
@@ -539,6 +569,7 @@ pub fn run(cli: Cli) -> Result<()> {
                             PathOptions::path(seed, bounces, spp)
                         };
                         o.fused = !split_passes;
+                        o.sampler = sampler.kind();
                         let pb = progress("render");
                         let r = path::render(&t, accel, &cam, &o, &Bar(pb.clone()))?;
                         pb.finish_and_clear();
@@ -573,6 +604,8 @@ pub fn run(cli: Cli) -> Result<()> {
                             eye_bounces: bounces,
                             eye_samples: spp,
                             seed,
+                            sampler: sampler.kind(),
+                            photon_sampler: photon_sampler.kind(),
                             ..Default::default()
                         };
                         let mut map = PhotonMap::new(&t, accel, tree, scene.surface_area(), o)?;

@@ -24,7 +24,7 @@ use kdray::accel::Accel;
 use kdray::image_out::{image_error, write_pfm};
 use kdray::integrator::path::{self, FrameBuffers, PathOptions};
 use kdray::integrator::photon::{self as pm, FinalGather, IndexKind, PhotonMap, PhotonOptions};
-use kdray::integrator::RenderOutput;
+use kdray::integrator::{RenderOutput, SamplerKind};
 use kdray::kernels::TracePhotons;
 use kdray_shared::PhotonParams;
 use kdray::runtime::cpu::NATIVE;
@@ -146,7 +146,7 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
         let fg_stored = fg_map.trace_and_index(0)?;
         let (eye_ms, bvh_eye_ms, gather_grid, gather_wide, gather_kd, fg_ms) = if t.batch_size(accel, n) >= n {
             let fb = FrameBuffers::new(&t, accel, n)?;
-            let po = PathOptions { seed: 1, bounces: 16, diffuse_bounces: 0, spp: 1, jitter: true, fused: true };
+            let po = PathOptions { seed: 1, bounces: 16, diffuse_bounces: 0, spp: 1, jitter: true, fused: true, sampler: SamplerKind::Sobol };
             let mut p = path::params(&t, &cam, &po, 0, n, 0);
             p.flags |= kdray_shared::RENDER_GATHER;
             let eye = time_recorded(rt, copies, &|c| {
@@ -273,6 +273,10 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
             ("ppm final gather, 16 eye samples/pass".into(), PhotonOptions { final_gather: FinalGather::All, eye_samples: 16, ..d.clone() }),
             ("ppm final gather near edges, 4 eye samples/pass".into(), PhotonOptions { final_gather: FinalGather::Edges, ..d.clone() }),
             ("ppm final gather near edges, 16 eye samples/pass".into(), PhotonOptions { final_gather: FinalGather::Edges, eye_samples: 16, ..d.clone() }),
+            (
+                "ppm final gather near edges, 4 eye samples/pass, independent numbers".into(),
+                PhotonOptions { final_gather: FinalGather::Edges, sampler: SamplerKind::Independent, photon_sampler: SamplerKind::Independent, ..d.clone() },
+            ),
         ];
         // KDRAY_PHOTONS_VARIANTS="a;b": only the variants whose names contain one of them.
         let only: Option<Vec<String>> = std::env::var("KDRAY_PHOTONS_VARIANTS").ok().map(|v| v.split(';').map(String::from).collect());
@@ -291,16 +295,18 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
             series.push(Series { name, points: pts, dashed: false });
         }
         let spps: Vec<u32> = if software { vec![4, 16] } else { vec![16, 64, 256, 1024] };
-        let mut pts = Vec::new();
-        for &spp in &spps {
-            let start = Instant::now();
-            let img = path::render(&t, err_accel, &cam, &PathOptions::path(0xA11CE, 64, spp), &hidden)?;
-            let secs = start.elapsed().as_secs_f64();
-            let (e, m) = error_of(&img, &reference);
-            pts.push((secs, e * 100.0));
-            errors.push(vec![scene.name.clone(), "path tracer".into(), spp.to_string(), "–".into(), format!("{secs:.3}"), format!("{:.3}", e * 100.0), format!("{:.3}", corrected(e) * 100.0), format!("{m:.3e}"), ref_spp.to_string()]);
+        for (name, sampler) in [("path tracer", SamplerKind::Sobol), ("path tracer, independent numbers", SamplerKind::Independent)] {
+            let mut pts = Vec::new();
+            for &spp in &spps {
+                let start = Instant::now();
+                let img = path::render(&t, err_accel, &cam, &PathOptions { sampler, ..PathOptions::path(0xA11CE, 64, spp) }, &hidden)?;
+                let secs = start.elapsed().as_secs_f64();
+                let (e, m) = error_of(&img, &reference);
+                pts.push((secs, e * 100.0));
+                errors.push(vec![scene.name.clone(), name.into(), spp.to_string(), "–".into(), format!("{secs:.3}"), format!("{:.3}", e * 100.0), format!("{:.3}", corrected(e) * 100.0), format!("{m:.3e}"), ref_spp.to_string()]);
+            }
+            series.push(Series { name: format!("{name} (NEE)"), points: pts, dashed: true });
         }
-        series.push(Series { name: "path tracer (NEE)".into(), points: pts, dashed: true });
         let plot_path = o.out.join(format!("photons-error-{}-{}.png", scene.name, dev_name(o)));
         let chart = LineChart {
             title: format!("{}: error vs time, {err_size}² ({})", scene.name, short_device_name(o)),
@@ -351,7 +357,7 @@ pub fn plot_error_table(table: &std::path::Path, mitsuba: Option<&std::path::Pat
     for scene in scenes {
         let mut series: Vec<Series> = Vec::new();
         for r in rows.iter().filter(|r| r["scene"] == scene) {
-            let name = if r["method"] == "path tracer" { "kdray path tracer (NEE)".to_string() } else { r["method"].clone() };
+            let name = if r["method"].starts_with("path tracer") { format!("kdray {} (NEE)", r["method"]) } else { r["method"].clone() };
             let pt = (r["seconds"].parse::<f64>().unwrap_or(f64::NAN), r["noise-corrected %"].parse::<f64>().unwrap_or(f64::NAN));
             match series.iter_mut().find(|s| s.name == name) {
                 Some(s) => s.points.push(pt),
