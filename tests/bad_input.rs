@@ -2,6 +2,7 @@
 mod common;
 
 use kdray::scene;
+use kdray::Runtime;
 use std::path::PathBuf;
 use std::process::Command;
 
@@ -159,6 +160,21 @@ fn too_large_for_the_gpu_is_a_clear_error() {
     let e = format!("{:#}", g.check_size("triangle", max + 1).unwrap_err());
     assert!(e.starts_with("scene too large for this GPU: the triangle buffer needs"), "{e}");
     assert!(g.check_size("triangle", max).is_ok());
+}
+
+/// A buffer the device refuses (past its largest buffer, taken below the size check that
+/// `alloc` makes) is an error of the allocation, not a panic in wgpu's error handler; the
+/// device goes on working.
+#[test]
+fn a_buffer_the_gpu_refuses_is_an_error_not_a_panic() {
+    let Some(g) = common::gpu() else { return };
+    let e = g.alloc_raw("huge", 1 << 50).err().expect("a 1 PiB buffer is refused");
+    let msg = format!("{e:#}");
+    assert!(matches!(e.kind(), kdray::Error::TooLarge(_)), "{msg}");
+    assert!(msg.contains("huge") && !msg.contains('\n'), "{msg}");
+    let rt: &dyn Runtime = g;
+    let b = rt.upload("after", &[1u32, 2, 3]).unwrap();
+    assert_eq!(rt.read(&b, 3).unwrap(), vec![1, 2, 3]);
 }
 
 fn kdray(args: &[&str], envs: &[(&str, &str)]) -> (i32, String, String) {

@@ -677,3 +677,64 @@ fn passes_whose_photons_overflow_the_records_are_redone() {
         }
     }
 }
+
+/// The path tracer keeps what is done too: lost after a few sample groups (checkpoints after
+/// every one), it returns the image of the groups before — exactly a render of that many
+/// samples per pixel — and says why; lost in the first, it is an error.
+#[test]
+fn a_path_traced_render_whose_device_is_lost_returns_the_samples_before_it() {
+    let s = scene::load("cornell").unwrap();
+    let tr = tree(&s);
+    let cam = s.camera.to_pod(24, 24);
+    let accel = Accel::kd(Algorithm::ShortStack(3));
+    // 2 000 samples per pixel of 576 pixels: several sample groups of a native batch.
+    let o = |spp| PathOptions::path(3, 8, spp);
+    let render = |rt: &dyn Runtime, spp| {
+        let t = Tracer::new(rt, &s, Some(&tr)).unwrap();
+        path::render_checkpointed(&t, accel, &cam, &o(spp), &(), 0.0)
+    };
+    let rt = LostAfter { fail_at: 5, submits: 0.into() };
+    let (img, stats) = render(&rt, 2000).expect("the samples before the loss come back");
+    let why = stats.interrupted.expect("the render says it was interrupted");
+    assert!(why.contains("injected"), "{why}");
+    assert!(stats.samples > 0 && stats.samples < 2000, "{} samples", stats.samples);
+    let (want, full) = render(&NATIVE, stats.samples).unwrap();
+    assert!(full.interrupted.is_none());
+    assert!(img.radiance == want.radiance, "the image is that of the {} samples done", stats.samples);
+    // Lost at the first checkpoint: nothing saved yet.
+    let rt = LostAfter { fail_at: 1, submits: 0.into() };
+    assert!(matches!(render(&rt, 2000).err().expect("an error").kind(), kdray::Error::DeviceLost(_)));
+}
+
+/// A real device lost mid-render (destroyed from the progress callback after the third pass):
+/// the render returns the image of the passes checked before, says why, and never panics or
+/// waits out a timeout.
+#[test]
+fn a_destroyed_device_mid_render_returns_the_passes_before_it() {
+    let Some(g) = common::gpu() else { return };
+    // A device of its own: destroying it must not break the other tests' GPU.
+    let gpu = kdray::Gpu::open(g.index).unwrap();
+    let s = scene::load("cornell").unwrap();
+    let tr = tree(&s);
+    let cam = s.camera.to_pod(24, 24);
+    let accel = Accel::kd(Algorithm::ShortStack(3));
+    struct DestroyAfter<'a>(&'a kdray::Gpu, std::cell::Cell<u64>);
+    impl kdray::integrator::Progress for DestroyAfter<'_> {
+        fn advance(&self, n: u64) {
+            self.1.set(self.1.get() + n);
+            if self.1.get() == 3 {
+                self.0.device.destroy();
+            }
+        }
+    }
+    let t = Tracer::new(&gpu, &s, Some(&tr)).unwrap();
+    let o = PhotonOptions { photons: 1 << 12, passes: 8, checkpoint_seconds: 0.0, ..Default::default() };
+    let mut map = PhotonMap::new(&t, accel, Some(&tr), s.surface_area(), o).unwrap();
+    let start = std::time::Instant::now();
+    let (img, stats) = pm::render(&mut map, &cam, &DestroyAfter(&gpu, 0.into())).expect("the passes before the loss come back");
+    assert!(start.elapsed().as_secs() < 60, "waited {:?} for a lost device", start.elapsed());
+    let why = stats.interrupted.expect("the render says it was interrupted");
+    assert!(why.contains("lost") || why.contains("destroyed"), "{why}");
+    assert!(stats.passes >= 2 && stats.passes <= 3, "{} passes", stats.passes);
+    assert!(img.radiance.iter().any(|p| p[0] > 0.0));
+}

@@ -73,6 +73,15 @@ pub struct Gpu {
     params: Mutex<HashMap<Vec<u8>, RawBuffer>>,
     /// When a timed measurement last finished (to tell how long the GPU has idled).
     last_timed: Mutex<Option<std::time::Instant>>,
+    /// What the device reported outside calls that return errors.
+    faults: Arc<Faults>,
+}
+
+/// A lost device's reason, and the first error raised outside an error scope.
+#[derive(Default)]
+struct Faults {
+    lost: Mutex<Option<String>>,
+    error: Mutex<Option<String>>,
 }
 
 fn device_rank(t: wgpu::DeviceType) -> u32 {
@@ -99,6 +108,11 @@ pub fn adapters() -> Vec<wgpu::Adapter> {
 /// One line naming an adapter: name, backend, device type, driver.
 pub fn describe(info: &wgpu::AdapterInfo) -> String {
     format!("{} ({:?}, {:?}, driver {} {})", info.name, info.backend, info.device_type, info.driver, info.driver_info)
+}
+
+/// A wgpu error (whose text spans lines: the error and its causes) as one line.
+fn one_line(e: &wgpu::Error) -> String {
+    e.to_string().split('\n').map(|l| l.trim().trim_end_matches(':')).filter(|l| !l.is_empty()).collect::<Vec<_>>().join(": ")
 }
 
 const NO_ADAPTER: &str =
@@ -189,6 +203,20 @@ impl Gpu {
             ..Default::default()
         }))
         .map_err(|e| err!(NoAdapter: "cannot open GPU device {}: {e}", describe(&info)))?;
+        // Errors outside an error scope and a lost device are recorded here and reported by
+        // the next submission or wait, instead of panicking in wgpu's default handler (or
+        // waiting out `SUBMIT_TIMEOUT` for a device that will never answer).
+        let faults = Arc::new(Faults::default());
+        let f = faults.clone();
+        device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
+            f.error.lock().expect("GPU faults").get_or_insert_with(|| one_line(&e));
+        }));
+        let f = faults.clone();
+        device.set_device_lost_callback(move |reason, message| {
+            let m = message.trim().to_string();
+            let what = if m.is_empty() { format!("{reason:?}") } else { format!("{reason:?}: {m}") };
+            f.lost.lock().expect("GPU faults").get_or_insert(what);
+        });
         let m = module_info()?;
         let entry_points: Vec<wgpu::PassthroughShaderEntryPoint> = m
             .entry_points
@@ -223,7 +251,20 @@ impl Gpu {
             staging: Mutex::new(Vec::new()),
             params: Mutex::new(HashMap::new()),
             last_timed: Mutex::new(None),
+            faults,
         })
+    }
+
+    /// A fault the device reported since the last call: a lost device (every later call
+    /// reports it too) or an error outside an error scope (reported once).
+    fn fault(&self) -> Result<()> {
+        if let Some(m) = self.faults.lost.lock().expect("GPU faults").as_ref() {
+            bail!(DeviceLost: "the GPU device was lost ({m})");
+        }
+        if let Some(m) = self.faults.error.lock().expect("GPU faults").take() {
+            bail!(Gpu: "the GPU reported an error: {m}");
+        }
+        Ok(())
     }
 
     fn pipeline(&self, name: &str) -> Result<Arc<Pipeline>> {
@@ -438,9 +479,11 @@ impl Gpu {
     }
 
     fn poll(&self, idx: Option<wgpu::SubmissionIndex>) -> Result<()> {
-        self.device
-            .poll(wgpu::PollType::Wait { submission_index: idx, timeout: Some(SUBMIT_TIMEOUT) })
-            .map_err(|e| err!(DeviceLost: "the GPU did not finish: {e}"))?;
+        self.fault()?;
+        let polled = self.device.poll(wgpu::PollType::Wait { submission_index: idx, timeout: Some(SUBMIT_TIMEOUT) });
+        // A fault explains a failed wait better than the wait's own error.
+        self.fault()?;
+        polled.map_err(|e| err!(DeviceLost: "the GPU did not finish: {e}"))?;
         Ok(())
     }
 
@@ -599,6 +642,11 @@ impl Runtime for Gpu {
 
     fn alloc_raw(&self, label: &str, bytes: u64) -> Result<RawBuffer> {
         let size = bytes.max(4).next_multiple_of(4);
+        // A buffer the device cannot hold (out of memory) or refuses (past its limits) is an
+        // error of this call: caught in error scopes instead of reaching wgpu's handler of
+        // uncaptured errors, which panics.
+        let out_of_memory = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let invalid = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
         let buffer = self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some(label),
             size,
@@ -606,6 +654,15 @@ impl Runtime for Gpu {
             // wgpu zero-initialises new buffers.
             mapped_at_creation: false,
         });
+        let refused = pollster::block_on(invalid.pop());
+        let no_memory = pollster::block_on(out_of_memory.pop());
+        let mib = size as f64 / 1048576.0;
+        if let Some(e) = no_memory {
+            bail!(TooLarge: "out of GPU memory: the {label} buffer ({mib:.1} MiB) does not fit on {}: {}", self.info.name, one_line(&e));
+        }
+        if let Some(e) = refused {
+            bail!(TooLarge: "the GPU refuses the {label} buffer ({mib:.1} MiB) on {}: {}", self.info.name, one_line(&e));
+        }
         // Bind groups of dropped buffers go first, so their memory is freed before more is taken.
         self.purge_dead(&mut self.bind_groups.lock().expect("bind group cache"));
         Ok(RawBuffer::new(label, size, Mem::Gpu { buffer, dead: self.dead.clone(), device: self.id }))
@@ -665,11 +722,12 @@ impl Runtime for Gpu {
     fn submit(&self, mut c: Commands) -> Result<()> {
         self.commands(&mut c)?;
         let enc = c.encoder.take().ok_or_else(|| err!(InvalidInput: "commands of another runtime"))?;
+        self.fault()?;
         let idx = self.queue.submit([enc.finish()]);
         for r in &c.readbacks {
             *r.submission.lock().expect("read-back") = Some(idx.clone());
         }
-        Ok(())
+        self.fault()
     }
 
     fn wait(&self, p: Pending) -> Result<Vec<u32>> {

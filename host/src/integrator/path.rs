@@ -58,39 +58,62 @@ pub fn sample_seed(seed: u32, s: u32) -> u32 {
     }
 }
 
-/// The renderer's buffers for batches of up to `size` pixels.
+/// A film: what the paths of a batch of pixels leave behind over the sample groups.
+pub struct FilmBuffers {
+    /// Per path of a dispatch: the closest hit of its camera ray (bounce 0).
+    pub primary_hits: Buffer<Hit>,
+    /// Per pixel: the sum of its samples' radiance, and their number in the fourth component.
+    pub radiance: Buffer<[f32; 4]>,
+}
+
+impl FilmBuffers {
+    /// A film for dispatches of up to `paths` paths over `pixels` pixels.
+    pub fn new(t: &Tracer, paths: usize, pixels: usize) -> Result<Self> {
+        Ok(FilmBuffers { primary_hits: t.rt.alloc("primary hit", paths)?, radiance: t.rt.alloc("radiance", pixels)? })
+    }
+}
+
+/// The renderer's buffers for batches of up to `size` paths: the paths' state from bounce to
+/// bounce, and a film (`film`, unless made by `work`: then each batch brings its own).
 pub struct FrameBuffers {
     /// Per path: its current ray (the camera ray, then each bounce's).
     pub rays: Buffer<Ray>,
     /// Per path: its state (throughput, radiance so far, `PATH_*` flags).
     pub paths: Buffer<PathState>,
     hits: Buffer<Hit>,
-    /// Per path: the closest hit of its camera ray (bounce 0).
-    pub primary_hits: Buffer<Hit>,
     shadow: Buffer<Ray>,
     terms: Buffer<ShadeTerms>,
     /// Stays 0 in scenes without lights (no shadow pass writes it).
     occluded: Buffer<u32>,
-    /// The film: the sum of the samples' radiance, and their number in the fourth component.
-    pub radiance: Buffer<[f32; 4]>,
     lists: Option<LeafLists>,
+    /// The film the passes of `eye_passes` and `passes` write.
+    pub film: FilmBuffers,
 }
 
 impl FrameBuffers {
-    /// Allocates them on `t`'s runtime for up to `size` paths, with the leaf lists that
-    /// `accel`'s decomposed pipeline needs.
+    /// Allocates them on `t`'s runtime for up to `size` paths (and a film of as many pixels),
+    /// with the leaf lists that `accel`'s decomposed pipeline needs.
     pub fn new(t: &Tracer, accel: Accel, size: usize) -> Result<Self> {
+        Self::with_film(t, accel, size, FilmBuffers::new(t, size, size)?)
+    }
+
+    /// The paths' buffers for up to `size` paths, with a film of one element: for schedules
+    /// that give each batch a film of its own (`eye_passes_into`).
+    pub fn work(t: &Tracer, accel: Accel, size: usize) -> Result<Self> {
+        Self::with_film(t, accel, size, FilmBuffers::new(t, 1, 1)?)
+    }
+
+    fn with_film(t: &Tracer, accel: Accel, size: usize, film: FilmBuffers) -> Result<Self> {
         let rt = t.rt;
         Ok(FrameBuffers {
             rays: rt.alloc("ray", size)?,
             paths: rt.alloc("path", size)?,
             hits: rt.alloc("hit", size)?,
-            primary_hits: rt.alloc("primary hit", size)?,
             shadow: rt.alloc("shadow ray", size)?,
             terms: rt.alloc("shade terms", size)?,
             occluded: rt.alloc("occluded", size)?,
-            radiance: rt.alloc("radiance", size)?,
             lists: t.leaf_lists(accel, size)?,
+            film,
         })
     }
 }
@@ -125,8 +148,8 @@ pub fn with_samples(p: RenderParams, samples: u32) -> RenderParams {
 /// Every pass of one sample group of one batch, in order, up to the paths' last bounce (the
 /// caller adds the film or the gather). Bounce 0 writes its hits into `primary_hits`. With
 /// `RENDER_CONTINUE` the paths resume from their gather points (`ContinuePaths`) instead of
-/// leaving the camera, and `primary_hits` stays as it is.
-pub fn path_passes<'a>(t: &'a Tracer, accel: Accel, p: &RenderParams, fb: &'a FrameBuffers) -> Result<Vec<Box<dyn Kernel + 'a>>> {
+/// leaving the camera, and `primary_hits` stays as it is. The film is `film`.
+pub fn path_passes<'a>(t: &'a Tracer, accel: Accel, p: &RenderParams, fb: &'a FrameBuffers, film: &'a FilmBuffers) -> Result<Vec<Box<dyn Kernel + 'a>>> {
     let n = p.count as usize;
     let resuming = p.flags & RENDER_CONTINUE != 0;
     let mut v: Vec<Box<dyn Kernel + 'a>> = if resuming {
@@ -136,7 +159,7 @@ pub fn path_passes<'a>(t: &'a Tracer, accel: Accel, p: &RenderParams, fb: &'a Fr
     };
     for bounce in 0..=p.max_bounces {
         let params = RenderParams { bounce, ..*p };
-        let hits = if bounce == 0 && !resuming { &fb.primary_hits } else { &fb.hits };
+        let hits = if bounce == 0 && !resuming { &film.primary_hits } else { &fb.hits };
         v.extend(t.query_passes::<Closest>(accel, n, &fb.rays, hits, fb.lists.as_ref())?);
         v.push(Box::new(PathStep {
             params,
@@ -159,26 +182,31 @@ pub fn path_passes<'a>(t: &'a Tracer, accel: Accel, p: &RenderParams, fb: &'a Fr
 
 /// The whole-path kernel for `p` (camera to end in one thread), when the module has one for
 /// this way of finding hits on this runtime (`Tracer::whole_path_method`).
-pub fn fused_pass<'a>(t: &'a Tracer, accel: Accel, p: &RenderParams, fb: &'a FrameBuffers) -> Option<TracePaths<'a>> {
+pub fn fused_pass<'a>(t: &'a Tracer, accel: Accel, p: &RenderParams, fb: &'a FrameBuffers, film: &'a FilmBuffers) -> Option<TracePaths<'a>> {
     let method = t.whole_path_method(accel, TracePaths::PREFIX)?;
-    TracePaths::new(method, *p, &t.scene_box, t.scene_binds(accel), &t.materials, &t.lights, &fb.rays, &fb.paths, &fb.primary_hits)
+    TracePaths::new(method, *p, &t.scene_box, t.scene_binds(accel), &t.materials, &t.lights, &fb.rays, &fb.paths, &film.primary_hits)
 }
 
-/// The eye paths of `p` up to their ends: the whole-path kernel if `fused` and there is one,
-/// else `path_passes`.
+/// The eye paths of `p` up to their ends, into `fb`'s film: the whole-path kernel if `fused`
+/// and there is one, else `path_passes`.
 pub fn eye_passes<'a>(t: &'a Tracer, accel: Accel, p: &RenderParams, fb: &'a FrameBuffers, fused: bool) -> Result<Vec<Box<dyn Kernel + 'a>>> {
+    eye_passes_into(t, accel, p, fb, &fb.film, fused)
+}
+
+/// `eye_passes` into the film `film`.
+pub fn eye_passes_into<'a>(t: &'a Tracer, accel: Accel, p: &RenderParams, fb: &'a FrameBuffers, film: &'a FilmBuffers, fused: bool) -> Result<Vec<Box<dyn Kernel + 'a>>> {
     if fused {
-        if let Some(k) = fused_pass(t, accel, p, fb) {
+        if let Some(k) = fused_pass(t, accel, p, fb, film) {
             return Ok(vec![Box::new(k)]);
         }
     }
-    path_passes(t, accel, p, fb)
+    path_passes(t, accel, p, fb, film)
 }
 
 /// `path_passes` and the film.
 pub fn passes<'a>(t: &'a Tracer, accel: Accel, p: &RenderParams, fb: &'a FrameBuffers) -> Result<Vec<Box<dyn Kernel + 'a>>> {
-    let mut v = path_passes(t, accel, p, fb)?;
-    v.push(Box::new(Film { params: *p, paths: &fb.paths, radiance: &fb.radiance }));
+    let mut v = path_passes(t, accel, p, fb, &fb.film)?;
+    v.push(Box::new(Film { params: *p, paths: &fb.paths, radiance: &fb.film.radiance }));
     Ok(v)
 }
 
@@ -193,58 +221,115 @@ pub fn place(out: &mut RenderOutput, cam: &Camera, first: usize, hits: Vec<Hit>,
     }
 }
 
-/// Dispatches recorded into one submission (bounds the size of a command buffer).
-const DISPATCHES_PER_SUBMIT: usize = 2048;
+/// What a path-traced render did.
+#[derive(Clone, Debug, Default)]
+pub struct PathStats {
+    /// Samples per pixel in the image (fewer than asked when a failure interrupted it).
+    pub samples: u32,
+    /// Wall time of the render, in seconds.
+    pub seconds: f64,
+    /// Why the render stopped early: what failed, and how (`render_checkpointed`).
+    pub interrupted: Option<String>,
+}
+
+/// Seconds between the film's read-backs in `render_checkpointed`.
+pub const CHECKPOINT_SECONDS: f64 = 1.0;
 
 /// Renders `cam`'s image: `o.spp` samples per pixel, as many per dispatch as the batch size
-/// allows (fewer, larger dispatches).
+/// allows (fewer, larger dispatches). An error if anything fails (`render_checkpointed` keeps
+/// what was done).
 pub fn render(t: &Tracer, accel: Accel, cam: &Camera, o: &PathOptions, progress: &dyn Progress) -> Result<RenderOutput> {
+    // No checkpoint: nothing to keep, so any failure is the error itself.
+    Ok(render_checkpointed(t, accel, cam, o, progress, f64::INFINITY)?.0)
+}
+
+/// `render`, progressively: every batch of pixels gets its sample groups in turn (each batch
+/// its own film, the paths' buffers shared), and about every `checkpoint_seconds` the films
+/// are read back. If a submission or read-back fails after a checkpoint (a lost device), the
+/// render returns the checkpoint's image, of fewer samples per pixel, with the error in
+/// `PathStats::interrupted`; a failure before the first checkpoint is an error.
+pub fn render_checkpointed(t: &Tracer, accel: Accel, cam: &Camera, o: &PathOptions, progress: &dyn Progress, checkpoint_seconds: f64) -> Result<(RenderOutput, PathStats)> {
     t.check(accel)?;
     if o.spp == 0 {
         bail!(InvalidInput: "at least one sample per pixel is needed");
     }
     let rt = t.rt;
+    let start = std::time::Instant::now();
     let n = (cam.width * cam.height) as usize;
     let b = t.batch_size(accel, n);
     let per_dispatch = (t.batch_size(accel, b * o.spp as usize) / b).clamp(1, o.spp as usize) as u32;
     let groups = o.spp.div_ceil(per_dispatch);
-    let sets = if n > b { 2 } else { 1 };
-    let fbs: Vec<FrameBuffers> = (0..sets).map(|_| FrameBuffers::new(t, accel, b * per_dispatch as usize)).collect::<Result<_>>()?;
-    let mut out = RenderOutput::new(cam.width, cam.height);
+    let batches: Vec<(usize, usize)> = (0..n).step_by(b).map(|f| (f, b.min(n - f))).collect();
+    let work = FrameBuffers::work(t, accel, b * per_dispatch as usize)?;
+    let films: Vec<FilmBuffers> = batches.iter().map(|&(_, c)| FilmBuffers::new(t, c * per_dispatch as usize, c)).collect::<Result<_>>()?;
+    let film_refs: Vec<&FilmBuffers> = films.iter().collect();
     progress.start(n as u64 * o.spp as u64);
-    let mut pending = None;
-    let mut first = 0;
-    let mut batch = 0;
-    while first < n {
-        let count = b.min(n - first);
-        let fb = &fbs[batch % sets];
-        let mut c = rt.begin();
-        let mut recorded = 0;
-        for g in 0..groups {
-            let s = per_dispatch.min(o.spp - g * per_dispatch);
-            let p = RenderParams { sample_base: g * per_dispatch, ..with_samples(params(t, cam, o, first, count, g), s) };
-            for k in eye_passes(t, accel, &p, fb, o.fused)? {
-                rt.dispatch(&mut c, k.as_ref())?;
-                recorded += 1;
+    let mut saved: Option<(RenderOutput, u32)> = None;
+    let mut saved_at = 0.0;
+    let fail = |saved: Option<(RenderOutput, u32)>, what: String, e: crate::Error| match saved {
+        Some((out, samples)) => Ok((out, PathStats { samples, seconds: start.elapsed().as_secs_f64(), interrupted: Some(format!("{what}: {e}")) })),
+        None => Err(e),
+    };
+    let mut done = 0u32;
+    for g in 0..groups {
+        let s = per_dispatch.min(o.spp - g * per_dispatch);
+        let submitted = (|| -> Result<()> {
+            let mut c = rt.begin();
+            let mut recorded = 0;
+            for (&(first, count), film) in batches.iter().zip(&films) {
+                let p = RenderParams { sample_base: g * per_dispatch, ..with_samples(params(t, cam, o, first, count, g), s) };
+                for k in eye_passes_into(t, accel, &p, &work, film, o.fused)? {
+                    rt.dispatch(&mut c, k.as_ref())?;
+                    recorded += 1;
+                }
+                rt.dispatch(&mut c, &Film { params: p, paths: &work.paths, radiance: &film.radiance })?;
+                if recorded >= DISPATCHES_PER_SUBMIT {
+                    rt.submit(std::mem::replace(&mut c, rt.begin()))?;
+                    recorded = 0;
+                }
             }
-            rt.dispatch(&mut c, &Film { params: p, paths: &fb.paths, radiance: &fb.radiance })?;
-            progress.advance((count * s as usize) as u64);
-            if recorded >= DISPATCHES_PER_SUBMIT && g + 1 < groups {
-                rt.submit(std::mem::replace(&mut c, rt.begin()))?;
-                recorded = 0;
+            rt.submit(c)
+        })();
+        if let Err(e) = submitted {
+            return fail(saved, format!("sample group {g} failed"), e);
+        }
+        done += s;
+        progress.advance(n as u64 * s as u64);
+        let secs = start.elapsed().as_secs_f64();
+        if g + 1 < groups && secs - saved_at >= checkpoint_seconds {
+            match read_films(t, cam, &batches, &film_refs) {
+                Ok((out, _)) => saved = Some((out, done)),
+                Err(e) => return fail(saved, format!("reading back the image after {done} samples per pixel failed"), e),
             }
+            saved_at = secs;
         }
-        let h = rt.read_back_of(&mut c, &fb.primary_hits, count)?;
-        let r = rt.read_back_of(&mut c, &fb.radiance, count)?;
-        rt.submit(c)?;
-        if let Some((f, h, r)) = pending.replace((first, h, r)) {
-            place(&mut out, cam, f, cast(rt.wait(h)?), cast(rt.wait(r)?));
-        }
-        first += count;
-        batch += 1;
     }
-    if let Some((f, h, r)) = pending {
-        place(&mut out, cam, f, cast(rt.wait(h)?), cast(rt.wait(r)?));
+    match read_films(t, cam, &batches, &film_refs) {
+        Ok((out, _)) => Ok((out, PathStats { samples: done, seconds: start.elapsed().as_secs_f64(), interrupted: None })),
+        Err(e) => fail(saved, "reading back the image failed".into(), e),
     }
-    Ok(out)
+}
+
+/// Dispatches recorded into one submission (bounds the size of a command buffer).
+const DISPATCHES_PER_SUBMIT: usize = 2048;
+
+/// The image of the films of `batches` and the films' sums (each batch's pixels): their
+/// primary hits and radiance, read back.
+pub fn read_films(t: &Tracer, cam: &Camera, batches: &[(usize, usize)], films: &[&FilmBuffers]) -> Result<(RenderOutput, Vec<Vec<[f32; 4]>>)> {
+    let rt = t.rt;
+    let mut out = RenderOutput::new(cam.width, cam.height);
+    let mut c = rt.begin();
+    let pending: Vec<_> = batches
+        .iter()
+        .zip(films)
+        .map(|(&(_, count), f)| Ok((rt.read_back_of(&mut c, &f.primary_hits, count)?, rt.read_back_of(&mut c, &f.radiance, count)?)))
+        .collect::<Result<_>>()?;
+    rt.submit(c)?;
+    let mut sums = Vec::with_capacity(batches.len());
+    for ((first, _), (h, r)) in batches.iter().zip(pending) {
+        let film: Vec<[f32; 4]> = cast(rt.wait(r)?);
+        place(&mut out, cam, *first, cast(rt.wait(h)?), film.clone());
+        sums.push(film);
+    }
+    Ok((out, sums))
 }

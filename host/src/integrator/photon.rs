@@ -782,7 +782,7 @@ struct Checkpoint {
 fn restore(t: &Tracer, fbs: &[FrameBuffers], saved: Option<&Checkpoint>) -> Result<()> {
     if let Some(cp) = saved {
         for (fb, film) in fbs.iter().zip(&cp.films) {
-            t.rt.write(&fb.radiance, film)?;
+            t.rt.write(&fb.film.radiance, film)?;
         }
     }
     Ok(())
@@ -799,30 +799,15 @@ fn submit_pass(map: &mut PhotonMap, cam: &Camera, pass: u32, batches: &[(usize, 
     for (&(first, count), fb) in batches.iter().zip(fbs) {
         let p = eye_params(t, cam, &map.o, first, count, pass);
         record_eye(&mut c, map, &p, pass, fb)?;
-        rt.dispatch(&mut c, &Film { params: p, paths: &fb.paths, radiance: &fb.radiance })?;
+        rt.dispatch(&mut c, &Film { params: p, paths: &fb.paths, radiance: &fb.film.radiance })?;
     }
     let pending = rt.read_back_of(&mut c, &map.counter, 1)?;
     rt.submit(c)?;
     Ok(pending)
 }
 
-/// The image so far, and the film's sums per batch: every batch's primary hits and film, read
-/// back.
+/// The image so far, and the film's sums per batch (`path::read_films`).
 fn read_film(t: &Tracer, cam: &Camera, batches: &[(usize, usize)], fbs: &[FrameBuffers]) -> Result<(RenderOutput, Vec<Vec<[f32; 4]>>)> {
-    let rt = t.rt;
-    let mut out = RenderOutput::new(cam.width, cam.height);
-    let mut c = rt.begin();
-    let pending: Vec<_> = batches
-        .iter()
-        .zip(fbs)
-        .map(|(&(_, count), fb)| Ok((rt.read_back_of(&mut c, &fb.primary_hits, count)?, rt.read_back_of(&mut c, &fb.radiance, fb.radiance.len())?)))
-        .collect::<Result<_>>()?;
-    rt.submit(c)?;
-    let mut films = Vec::with_capacity(batches.len());
-    for ((first, count), (h, r)) in batches.iter().zip(pending) {
-        let film: Vec<[f32; 4]> = cast(rt.wait(r)?);
-        path::place(&mut out, cam, *first, cast(rt.wait(h)?), film[..*count].to_vec());
-        films.push(film);
-    }
-    Ok((out, films))
+    let films: Vec<&path::FilmBuffers> = fbs.iter().map(|f| &f.film).collect();
+    path::read_films(t, cam, batches, &films)
 }

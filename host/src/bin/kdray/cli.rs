@@ -571,9 +571,9 @@ pub fn run(cli: Cli) -> Result<()> {
                         o.fused = !split_passes;
                         o.sampler = sampler.kind();
                         let pb = progress("render");
-                        let r = path::render(&t, accel, &cam, &o, &Bar(pb.clone()))?;
+                        let (r, s) = path::render_checkpointed(&t, accel, &cam, &o, &Bar(pb.clone()), path::CHECKPOINT_SECONDS)?;
                         pb.finish_and_clear();
-                        (r, None)
+                        (r, s.interrupted.map(|e| format!("{e}; the image holds the {} samples per pixel before it", s.samples)))
                     }
                     IntegratorArg::Photon => {
                         let o = PhotonOptions {
