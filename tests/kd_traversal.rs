@@ -482,6 +482,11 @@ fn chair_parts_are_closed() {
 /// audience once lost 0.3 % of its primary hits that way).
 #[test]
 fn rotated_chairs_with_rounding_noise() {
+    run_scene("rotated-chairs", &rotated_chairs(), 50_000);
+}
+
+/// Eight chairs, four turned by π and four by π/2 (faces planar up to rounding noise).
+fn rotated_chairs() -> Scene {
     use kdray::scene::procedural::{chair, Mesh};
     let mut m = Mesh::default();
     for i in 0..4 {
@@ -493,5 +498,180 @@ fn rotated_chairs_with_rounding_noise() {
     let mut s = Scene::new("rotated-chairs", kdray::scene::CameraSpec::framing(Vec3::ZERO, Vec3::ONE));
     let mat = s.add_material("wood", Default::default());
     m.into_scene(&mut s, mat, "chair").unwrap();
-    run_scene("rotated-chairs", &s, 50_000);
+    s
+}
+
+/// A scene and the same scene moved far from the origin (#11 item 1): the kd-tree of the moved
+/// one is as good (nodes and triangle tests per ray within 1.5× on the same rays, moved, a
+/// deterministic count), and every traversal still returns the oracle's hits there, on the
+/// hard cases, on random rays from around the scene and on rays from the world's origin aimed
+/// at its vertices, edges and faces (t rounds to about 10^-2 there: cells of an ulp of the
+/// moved coordinates are thinner than that).
+#[test]
+fn scenes_far_from_the_origin_keep_their_trees_and_hits() {
+    use kdray::scene::procedural::{chair, Mesh};
+    let shift = Vec3::new(148376.0, 1234.0, -223423.0);
+    let mut m = Mesh::default();
+    for i in 0..4 {
+        for j in 0..2 {
+            let yaw = [std::f32::consts::PI, std::f32::consts::FRAC_PI_2][j];
+            m.add(&chair(), Vec3::new(i as f32 * 0.7, 0.0, j as f32 * 0.7), yaw, 1.0);
+        }
+    }
+    let mut chairs = Scene::new("chairs", kdray::scene::CameraSpec::framing(Vec3::ZERO, Vec3::ONE));
+    let mat = chairs.add_material("wood", Default::default());
+    m.into_scene(&mut chairs, mat, "chair").unwrap();
+    for (name, small) in [("chairs", chairs), ("grid", grid_scene())] {
+        // At a scale where the moved coordinates still resolve the geometry (an ulp there is
+        // 0.016; the chairs' finest detail is about 1 at this scale).
+        let scaled = |s: &Scene, by: f32, at: Vec3, label: &str| {
+            let mut out = Scene::new(label, kdray::scene::CameraSpec::framing(Vec3::ZERO, Vec3::ONE));
+            let mat = out.add_material("white", Default::default());
+            for t in &s.triangles {
+                let v = [t.v0, t.v1, t.v2].map(|p| Vec3::from(p) * by + at);
+                out.add_triangle(v, mat, &|| label.to_string()).unwrap();
+            }
+            out
+        };
+        let scene = scaled(&small, 100.0, Vec3::ZERO, name);
+        let moved = scaled(&small, 100.0, shift, &format!("{name}-moved"));
+        let tree = build(&scene.triangles, &BuildOptions::default());
+        let far = build(&moved.triangles, &BuildOptions::default());
+        // The same rays, moved: from around the scene in random directions.
+        let (rays, hard) = hard_rays(&scene, &tree, 20_000, 5);
+        let random: Vec<Ray> = rays[hard..].to_vec();
+        let moved_rays: Vec<Ray> = random.iter().map(|r| Ray::new((Vec3::from(r.origin) + shift).to_array(), r.dir, r.t_min, r.t_max)).collect();
+        let per_ray = |tris: &[kdray_shared::Triangle], t: &KdTreeData, rays: &[Ray]| {
+            let c = kdray::analysis::counts(tris, t, Accel::kd(Algorithm::Stack), rays, true).unwrap();
+            let (nodes, tests): (u64, u64) = c.iter().fold((0, 0), |a, c| (a.0 + c.nodes as u64, a.1 + c.tris as u64));
+            (nodes as f64 / rays.len() as f64, tests as f64 / rays.len() as f64)
+        };
+        let (n0, t0) = per_ray(&scene.triangles, &tree, &random);
+        let (n1, t1) = per_ray(&moved.triangles, &far, &moved_rays);
+        println!("{name}: at the origin {n0:.1} nodes, {t0:.1} triangle tests per ray ({} nodes); moved {n1:.1}, {t1:.1} ({} nodes)", tree.stats.nodes, far.stats.nodes);
+        assert!(n1 <= 1.5 * n0 && n0 <= 1.5 * n1, "{name}: nodes per ray {n0:.1} at the origin, {n1:.1} moved");
+        assert!(t1 <= 1.5 * t0 && t0 <= 1.5 * t1, "{name}: triangle tests per ray {t0:.1} at the origin, {t1:.1} moved");
+        // The hard cases of the moved scene and the moved random rays: natively against the
+        // oracle, on the GPU against the GPU's brute force (rays starting exactly on the moved
+        // planes meet the triangle test's rounding there).
+        let (mut all, hard) = hard_rays(&moved, &far, 0, 7);
+        all.extend_from_slice(&moved_rays);
+        check_on(&format!("{name} moved"), &moved, &far, &all, hard, false);
+        check_gpu_against_gpu_brute(&format!("{name} moved"), &moved, &far, &all);
+        // Rays from the world's origin at its vertices, edge midpoints and centroids: natively
+        // (a ray through a vertex or an edge is a convention of the triangle test, which a GPU
+        // compiler may round otherwise).
+        let mut aimed = Vec::new();
+        for t in moved.triangles.iter().take(4000) {
+            let (a, b, c) = (Vec3::from(t.v0), Vec3::from(t.v1), Vec3::from(t.v2));
+            for target in [a, (a + b) * 0.5, (a + b + c) / 3.0] {
+                aimed.push(Ray::new([0.0; 3], target.to_array(), 0.0, f32::INFINITY));
+            }
+        }
+        let n = aimed.len();
+        let hits = check_on(&format!("{name} moved, aimed from the origin"), &moved, &far, &aimed, n, false);
+        let aimed_hits = hits.iter().filter(|h| h.is_hit()).count();
+        assert!(aimed_hits * 10 >= n * 9, "{name}: only {aimed_hits} of {n} aimed rays hit");
+    }
+}
+
+/// Thin cells far from the origin: flat quads stacked an ulp or two apart in z at
+/// z ≈ −223 323 (where an ulp is 1/64), the kd-tree free to put planes between them, and rays
+/// from the world's origin through them, whose t at those planes rounds by more than the
+/// cells are thick. Every traversal must still find the oracle's hits.
+#[test]
+fn cells_thinner_than_the_rounding_of_t() {
+    let z0 = -223323.0f32;
+    let mut v = Vec::new();
+    let mut f = Vec::new();
+    let mut z = z0;
+    for k in 0..12u32 {
+        // Quads of 60 × 60, the odd ones a little smaller: only planes in z separate them.
+        let (x, y) = if k % 2 == 0 { (148300.0, 1200.0) } else { (148310.0, 1210.0) };
+        let b = v.len() as u32;
+        let w = if k % 2 == 0 { 60.0 } else { 40.0 };
+        v.extend([[x, y, z], [x + w, y, z], [x + w, y + w, z], [x, y + w, z]]);
+        f.push([b, b + 1, b + 2]);
+        f.push([b, b + 2, b + 3]);
+        // The next z two ulps further (room for one plane between).
+        z = f32::from_bits(z.to_bits() + 2);
+    }
+    let scene = common::mesh_scene("thin", &v, &f);
+    let tree = build(&scene.triangles, &BuildOptions::default());
+    let thin_planes = tree.nodes.iter().filter(|n| !n.is_leaf() && n.axis() == 2 && (n.split() - z0).abs() < 1.0).count();
+    println!("thin: {:?}, {thin_planes} planes between the quads", tree.stats);
+    let mut rng = Rng::new(3, 9);
+    let mut rays = Vec::new();
+    for _ in 0..20_000 {
+        // Inside the quads, off their outer edges (a ray along an edge is a convention of the
+        // triangle test, which a GPU compiler may round otherwise).
+        let target = [148301.0 + 58.0 * rng.next_f32(), 1201.0 + 58.0 * rng.next_f32(), z0];
+        rays.push(Ray::new([0.0; 3], target, 0.0, f32::INFINITY));
+        let from = [target[0] + 40.0 * (rng.next_f32() - 0.5), target[1] + 40.0 * (rng.next_f32() - 0.5), z0 + 3000.0];
+        let d = [target[0] - from[0], target[1] - from[1], target[2] - from[2]];
+        rays.push(Ray::new(from, d, 0.0, f32::INFINITY));
+    }
+    let n = rays.len();
+    let hits = check("thin", &scene, &tree, &rays, n);
+    assert!(hits.iter().filter(|h| h.is_hit()).count() * 2 > n, "most rays hit a quad");
+}
+
+/// Rays from far away (2·10^5 from a scene 3 units across): their t at the planes rounds by
+/// about 0.02, far more than the thinnest cells of the rotated chairs (planes a few hundred
+/// ulps apart around their rounding noise), so cells come out empty or inverted in t. Every
+/// traversal must still find the oracle's hits.
+#[test]
+fn rays_from_far_away() {
+    let s = rotated_chairs();
+    let tree = build(&s.triangles, &BuildOptions::default());
+    let dirs = common::random_dirs(64, 21);
+    let mut rays = Vec::new();
+    for (k, t) in s.triangles.iter().enumerate() {
+        let (a, b, c) = (Vec3::from(t.v0), Vec3::from(t.v1), Vec3::from(t.v2));
+        let from = Vec3::from(dirs[k % dirs.len()]) * 2.0e5;
+        for target in [a, (a + b) * 0.5, (a + b + c) / 3.0] {
+            rays.push(Ray::new(from.to_array(), (target - from).to_array(), 0.0, f32::INFINITY));
+        }
+    }
+    // At vertices, edge midpoints and centroids: natively (a ray through a vertex or along an
+    // edge is a convention of the triangle test, which a GPU compiler may round otherwise).
+    let n = rays.len();
+    let hits = check_on("rays from far away, aimed", &s, &tree, &rays, n, false);
+    assert!(hits.iter().filter(|h| h.is_hit()).count() * 10 > n * 9);
+    // From far away at random points of the scene box, natively and on the GPU.
+    let (lo, hi) = s.bounds();
+    let mut rng = Rng::new(8, 2);
+    let far: Vec<Ray> = (0..40_000)
+        .map(|k| {
+            let from = Vec3::from(dirs[k % dirs.len()]) * 2.0e5;
+            let target = lo + (hi - lo) * Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+            Ray::new(from.to_array(), (target - from).to_array(), 0.0, f32::INFINITY)
+        })
+        .collect();
+    let hits = check_on("rays from far away", &s, &tree, &far, 0, false);
+    assert!(hits.iter().filter(|h| h.is_hit()).count() * 20 > far.len(), "some of the rays hit");
+    // On the GPU against the GPU's own brute force: rays from that far cross edges and
+    // vertices often (their directions round to a coarse grid), where the GPU's triangle test
+    // may round otherwise than the native one.
+    check_gpu_against_gpu_brute("rays from far away", &s, &tree, &far);
+}
+
+/// Every GPU traversal against the GPU's brute force on `rays` (ties allowed): for rays whose
+/// triangle tests the GPU rounds otherwise than the native code (edges and vertices of
+/// coordinates far from the origin), the traversals must still find exactly what brute force
+/// finds with the same triangle test.
+fn check_gpu_against_gpu_brute(name: &str, scene: &Scene, tree: &KdTreeData, rays: &[Ray]) {
+    let Some(g) = common::gpu() else { return };
+    let bvh = kdray::bvh::build(&scene.triangles);
+    let gpu = Tracer::new(g, scene, Some(tree)).unwrap().with_bvh(&bvh).unwrap();
+    let brute = gpu.closest_hits(Accel::BRUTE, rays).unwrap();
+    let brute_any = gpu.any_hits(Accel::BRUTE, rays).unwrap();
+    for accel in gpu_single().into_iter().chain(gpu_grouped()) {
+        let hits = gpu.closest_hits(accel, rays).unwrap();
+        let bad = (0..rays.len()).filter(|&i| !agree(&brute[i], &hits[i])).count();
+        assert_eq!(bad, 0, "{name}: GPU {}: {bad} of {} rays differ from the GPU's brute force", accel.name(), rays.len());
+        let any = gpu.any_hits(accel, rays).unwrap();
+        let bad = (0..rays.len()).filter(|&i| any[i] != brute_any[i]).count();
+        assert_eq!(bad, 0, "{name}: GPU {} any-hit: {bad} of {} rays differ from the GPU's brute force", accel.name(), rays.len());
+    }
 }

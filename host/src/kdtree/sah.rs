@@ -11,9 +11,9 @@
 //! clipped into both children. A point on a plane then belongs only to straddling triangles,
 //! and a ray meeting a plane exactly at an end of its interval (starting on a flat wall, lying
 //! in the plane, ending on it, passing through a cell corner) finds its hit in whichever child
-//! it visits. Planes never go into gaps narrower than about 64 ulps of the scene's coordinates
-//! (`MIN_GAP`), so no cell is a rounding error thin: no traversal needs zero-length cells and
-//! each returns the oracle's hits.
+//! it visits. Cells may be thinner than the rounding of a ray's t at their planes (any ray from
+//! far enough away sees them so): the traversals resolve that (`kdtree::ambiguous`); planes
+//! stay out of gaps narrower than 2^-18 of the scene's extent (`MIN_GAP`) for speed only.
 use super::clip::{clipped_bounds, tri_bounds, Bounds};
 use crate::error::{bail, Result};
 use kdray_shared::aabb::Aabb;
@@ -170,9 +170,11 @@ struct Ctx<'a> {
 }
 
 /// Planes go only into gaps between event positions of at least this fraction of the scene's
-/// largest coordinate (about 64 ulps there). Geometry closer together than that — a face that
-/// is axis-aligned up to rounding noise — is never cut apart, so no cell is thinner than the
-/// rounding of the ray parameters t at its planes, which would make a traversal skip it.
+/// extent: geometry closer together than that — a face that is axis-aligned up to rounding
+/// noise — is not cut apart. Not for correctness (the traversals resolve cells of any
+/// thinness, `kdtree::ambiguous`) but for speed: a ray meeting a cell thinner than the
+/// rounding of its t is traversed again with the full stack. Relative to the extent, not to
+/// the coordinates, so a scene far from the origin gets the tree it gets at the origin.
 const MIN_GAP: f32 = 1.0 / 262_144.0;
 
 impl Ctx<'_> {
@@ -514,8 +516,8 @@ fn build_within(tris: &[Triangle], opt: &BuildOptions, limits: &Limits) -> Resul
     for e in events.iter_mut() {
         sort_events(e);
     }
-    let magnitude = scene.0.iter().chain(&scene.1).fold(0.0f32, |m, x| m.max(x.abs()));
-    let ctx = Ctx { tris, opt, depth_limit, min_gap: magnitude * MIN_GAP };
+    let extent = (0..3).fold(0.0f32, |m, k| m.max(scene.1[k] - scene.0[k]));
+    let ctx = Ctx { tris, opt, depth_limit, min_gap: extent * MIN_GAP };
     let budget = opt.max_duplication.max(1.0) as f64 * n as f64;
     let root = ctx.build(Work { tris: (0..n as u32).collect(), bounds, events, cell: scene, depth: 0, budget });
     let mut counts = TreeCounts::default();

@@ -12,8 +12,8 @@
 //! The list is built locally and copied out by the caller (a storage-buffer slice held in the
 //! visitor made NVIDIA's SPIR-V compiler crash, driver 580).
 use super::single::traverse;
-use super::stack::FullStack;
-use super::{KdNode, KdTree};
+use super::stack::{Entry, FullStack};
+use super::{exit_bound, KdNode, KdTree};
 use crate::query::{Prims, Query, Visitor};
 use crate::stats::Stats;
 use crate::ray::Ray;
@@ -106,7 +106,7 @@ pub fn record_leaves<S: Stats>(tree: &KdTree, ray: &Ray, cap: u32, stats: &mut S
         has_pending: false,
         overflow: false,
     };
-    traverse::<_, _, _, false>(tree, ray, &mut l, &mut FullStack::new(), &mut NodesOnly(stats));
+    traverse::<_, Entry, _, _, false>(tree, ray, &mut l, &mut FullStack::new(), &mut NodesOnly(stats));
     l.flush();
     l
 }
@@ -135,7 +135,7 @@ pub fn intersect_leaves<Q: Query, S: Stats>(
         let e = list[base + k];
         stats.leaf();
         q.leaf(&g, e.node.prim_offset(), e.node.prim_count(), &r, ray.t_min, e.t_far, stats);
-        if q.done(e.t_far) {
+        if q.done(exit_bound(e.t_far)) {
             return true;
         }
         k += 1;

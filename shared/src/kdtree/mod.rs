@@ -19,9 +19,16 @@
 //! * every triangle of a leaf is tested and the closest taken;
 //! * the builder never puts a split plane through a vertex (host `kdtree::sah`): a point on a
 //!   plane belongs only to triangles that straddle it, which are in both children, so a ray
-//!   lying in a split plane (direction component ±0), or starting, entering or ending exactly on
-//!   one, needs only one of the two children: zero-length intervals are never visited, and a
-//!   restart always makes progress;
+//!   lying in a split plane (direction component ±0) needs only the child of its origin;
+//! * the ray parameter t of a plane, (p − o)·(1/d), is rounded (`PLANE_TOL`), and a cell may be
+//!   thinner along the ray than that rounding (a scene small against the ray's distance, or
+//!   noise-thin geometry): a plane whose t lies within rounding of an end of the interval is
+//!   ambiguous. The full stack visits both children there; a stack that may drop entries
+//!   cannot keep both for certain (a restart from the end of a leaf could pass over a cell that
+//!   thin), so the ray is walked again from the start with the full stack (counted as a
+//!   restart). A restart starts on the plane that ended the last leaf, the one plane whose t
+//!   equals the new start by construction, and goes beyond it. The search ends only when the
+//!   best hit lies below the end of the leaf by more than the roundings (`exit_bound`);
 //! * rays that `Ray::is_valid` rejects are misses, and every loop is bounded by the tree size.
 //!
 //! Modules: `single` (the one-ray traversal above), `packet` (four rays at once with lane
@@ -36,7 +43,7 @@ mod stack;
 pub use leaf_list::{intersect_leaves, record_leaves, LeafList, LeafRef, LEAF_OVERFLOW, MAX_LEAF_LIST};
 pub use packet::{direction_signs, packet_or_single, run_packet, traverse_packet, PacketEntry, PacketTraversal, PACKET};
 pub use single::{any_hit, closest_hit, run, traverse, Algorithm, with_traversal, Full, PushDown, Restart, Short, Traversal, WithTraversal, MAX_SHORT_STACK};
-pub use stack::{Entry, FullStack, NoStack, ShortStack, Stack};
+pub use stack::{Entry, ExitEntry, FullStack, NoStack, ShortStack, Stack, StackEntry, NO_NODE};
 
 use crate::aabb::Aabb;
 use crate::pod::Triangle;
@@ -45,6 +52,30 @@ use bytemuck::{Pod, Zeroable};
 
 /// Deepest tree the builder produces; also the capacity of `FullStack`.
 pub const MAX_DEPTH: usize = 48;
+
+/// Relative bound on the rounding of a ray parameter t at a split plane, (p − o) · (1/d): three
+/// roundings, 3u|t| (u = 2^-24), doubled.
+pub const PLANE_TOL: f32 = 1.0 / (1u32 << 21) as f32;
+
+/// Relative margin below the end of a leaf's interval under which a hit ends the search: the
+/// rounding of the end itself and of the triangle test's t.
+pub const EXIT_TOL: f32 = 1.0 / (1u32 << 19) as f32;
+
+/// How far a split plane's computed ray parameter `ts` and an interval end computed the same
+/// way may lie apart and still come in either order along the ray: their roundings
+/// (`PLANE_TOL` each, of `ts`'s magnitude where they are that close).
+#[inline(always)]
+pub fn plane_band(ts: f32) -> f32 {
+    2.0 * PLANE_TOL * ts.abs()
+}
+
+/// What a hit must lie before (`Visitor::done`) to end the search after a leaf whose interval
+/// ends at `t1`: below the least t at which a cell after it can begin, less the triangle
+/// test's rounding.
+#[inline(always)]
+pub fn exit_bound(t1: f32) -> f32 {
+    t1 - EXIT_TOL * t1.abs()
+}
 const LEAF: u32 = 3;
 
 /// Interior: `a` = split position (f32 bits), `b` = first child index << 2 | axis; the children

@@ -17,10 +17,12 @@
 //! after dropping entries, every unfinished lane restarts from the end of the last leaf *it*
 //! visited (push-down: from the deepest node entered since the last restart with no split).
 //! Each lane therefore visits the same leaves in the same order as it would alone and its
-//! result is identical to the single-ray result.
+//! result is identical to the single-ray result. A lane meeting an ambiguous plane
+//! (`kdtree::PLANE_TOL`) where the stack may drop entries ends the packet: the rays are
+//! traversed alone, which resolves it; the full-stack packet visits both children instead.
 use super::single::{traverse, with_traversal, Algorithm, Full, PushDown, Restart, Short, Traversal, WithTraversal};
-use super::stack::{Entry, NoStack, ShortStack, Stack};
-use super::{KdTree, MAX_DEPTH};
+use super::stack::{Entry, ExitEntry, NoStack, ShortStack, Stack, StackEntry, NO_NODE};
+use super::{exit_bound, KdTree, MAX_DEPTH, PLANE_TOL};
 use crate::query::Query;
 use crate::stats::Stats;
 use crate::aabb::{intersect_box, inv_dir};
@@ -44,6 +46,8 @@ pub struct PacketEntry {
     pub t0: [f32; PACKET],
     /// End of each lane's interval inside the child.
     pub t1: [f32; PACKET],
+    /// Per lane, the node whose plane ends its interval (`NO_NODE`: the scene box).
+    pub exit: [u32; PACKET],
 }
 
 #[inline(always)]
@@ -94,7 +98,9 @@ pub fn direction_signs(rays: &[Ray; PACKET]) -> Option<u32> {
 }
 
 /// Traverses the four rays together if they are coherent (see the module notes) and returns
-/// `true`; returns `false` without touching `q` otherwise.
+/// `true`; returns `false` otherwise — at once for an incoherent packet, or where a lane meets a
+/// split plane within rounding of an end of its interval (`ambiguous`), which the single-ray
+/// traversal resolves: the caller then traverses each ray alone (queries keep what they found).
 #[inline(always)]
 pub fn traverse_packet<Q: Query, K: Stack<PacketEntry>, S: Stats, const PUSHDOWN: bool>(
     tree: &KdTree,
@@ -146,6 +152,11 @@ pub fn traverse_packet<Q: Query, K: Stack<PacketEntry>, S: Stats, const PUSHDOWN
     let scene_t1 = t1;
     // End of the last leaf each lane visited: where it restarts.
     let mut t_last = t0;
+    // Per lane: the node whose plane ends its interval, the one ending its last leaf's, and
+    // after a restart the plane it has just passed (see `single::traverse`).
+    let mut exit = [NO_NODE; PACKET];
+    let mut exit_last = [NO_NODE; PACKET];
+    let mut passed = [NO_NODE; PACKET];
     let mut alive = valid;
     let mut mask = valid;
     if !mask.any() {
@@ -171,17 +182,54 @@ pub fn traverse_packet<Q: Query, K: Stack<PacketEntry>, S: Stats, const PUSHDOWN
             let below = node.first_child();
             let (near, far) = if positive & (1 << k) != 0 { (below, below + 1) } else { (below + 1, below) };
             let ts = (Vec4::splat(node.split()) - pick(o, k)) * pick(inv, k);
-            let need_far = mask & ts.cmplt(t1);
-            let need_near = mask & !(ts.cmplt(t1) & ts.cmple(t0));
+            let tol = Vec4::splat(PLANE_TOL);
+            let (need_far, need_near);
+            if !K::KEEPS_ALL {
+                // As `single::traverse` where entries may be dropped: a lane meeting a plane
+                // too near an end of its interval (but the one it restarts on) sends the rays
+                // alone; otherwise the exact decisions, per lane.
+                let close = (ts - t0).abs().cmple(tol * (ts.abs() + t0.abs())) | (ts - t1).abs().cmple(tol * (ts.abs() + t1.abs()));
+                let mut passing = 0u32;
+                let mut l = 0;
+                while l < PACKET {
+                    if passed[l] == node_idx {
+                        passing |= 1 << l;
+                    }
+                    l += 1;
+                }
+                if (mask & close & !lanes(passing)).any() {
+                    return false;
+                }
+                need_far = mask & ts.cmplt(t1);
+                need_near = mask & !(ts.cmplt(t1) & ts.cmple(t0));
+            } else {
+                // A full stack: the plane beyond the interval (near only), before it (far
+                // only), or crossing it or too near an end to tell (both).
+                let band = ts.abs() * Vec4::splat(2.0 * PLANE_TOL);
+                need_far = mask & !ts.cmpgt(t1 + band);
+                need_near = mask & !ts.cmplt(t0 - band);
+            }
             if !need_far.any() {
                 node_idx = near;
             } else if !need_near.any() {
                 node_idx = far;
             } else {
-                stack.push(PacketEntry { node: far, mask: need_far.bitmask(), t0: t0.max(ts).to_array(), t1: t1.to_array() });
+                let cut = ts.max(t0).min(t1);
+                stack.push(PacketEntry { node: far, mask: need_far.bitmask(), t0: cut.to_array(), t1: t1.to_array(), exit });
+                if !K::KEEPS_ALL {
+                    // Lanes whose interval now ends at this plane.
+                    let ends = (need_near & need_far).bitmask();
+                    let mut l = 0;
+                    while l < PACKET {
+                        if ends & (1 << l) != 0 {
+                            exit[l] = node_idx;
+                        }
+                        l += 1;
+                    }
+                }
                 node_idx = near;
                 mask = need_near;
-                t1 = t1.min(ts);
+                t1 = Vec4::select(need_far, cut, t1);
                 pushdown = false;
             }
             if PUSHDOWN && pushdown {
@@ -214,8 +262,11 @@ pub fn traverse_packet<Q: Query, K: Stack<PacketEntry>, S: Stats, const PUSHDOWN
         let t_end = t1.to_array();
         let mut l = 0;
         while l < PACKET {
-            if mask.test(l) && q[l].finished(t_end[l]) {
-                alive &= !lanes(1 << l);
+            if mask.test(l) {
+                exit_last[l] = exit[l];
+                if q[l].finished(exit_bound(t_end[l])) {
+                    alive &= !lanes(1 << l);
+                }
             }
             l += 1;
         }
@@ -228,6 +279,8 @@ pub fn traverse_packet<Q: Query, K: Stack<PacketEntry>, S: Stats, const PUSHDOWN
                         node_idx = e.node;
                         t0 = Vec4::from_array(e.t0);
                         t1 = Vec4::from_array(e.t1);
+                        exit = e.exit;
+                        passed = [NO_NODE; PACKET];
                         break;
                     }
                 }
@@ -239,6 +292,8 @@ pub fn traverse_packet<Q: Query, K: Stack<PacketEntry>, S: Stats, const PUSHDOWN
                     stats.restart();
                     t0 = t_last;
                     t1 = scene_t1;
+                    passed = exit_last;
+                    exit = [NO_NODE; PACKET];
                     node_idx = if PUSHDOWN { restart_node } else { 0 };
                     pushdown = true;
                     stack.clear();
@@ -253,11 +308,12 @@ pub fn traverse_packet<Q: Query, K: Stack<PacketEntry>, S: Stats, const PUSHDOWN
 /// Traverses the packet together if it is coherent, else ray by ray with the single-ray
 /// traversal of the same kind (`K`, push-down as given). Returns whether it went together.
 #[inline(always)]
-pub fn packet_or_single<Q, KP, K, S, const PUSHDOWN: bool>(tree: &KdTree, rays: &[Ray; PACKET], q: &mut [Q; PACKET], stats: &mut S) -> bool
+pub fn packet_or_single<Q, KP, E, K, S, const PUSHDOWN: bool>(tree: &KdTree, rays: &[Ray; PACKET], q: &mut [Q; PACKET], stats: &mut S) -> bool
 where
     Q: Query,
     KP: Stack<PacketEntry> + Default,
-    K: Stack<Entry> + Default,
+    E: StackEntry,
+    K: Stack<E> + Default,
     S: Stats,
 {
     if traverse_packet::<_, _, _, PUSHDOWN>(tree, rays, q, &mut KP::default(), stats) {
@@ -265,7 +321,7 @@ where
     }
     let mut l = 0;
     while l < PACKET {
-        traverse::<_, _, _, PUSHDOWN>(tree, &rays[l], &mut q[l], &mut K::default(), stats);
+        traverse::<_, E, _, _, PUSHDOWN>(tree, &rays[l], &mut q[l], &mut K::default(), stats);
         l += 1;
     }
     false
@@ -297,24 +353,24 @@ pub trait PacketTraversal {
 impl PacketTraversal for Full {
     #[inline(always)]
     fn run_packet<Q: Query, S: Stats>(tree: &KdTree, rays: &[Ray; PACKET], q: &mut [Q; PACKET], stats: &mut S) -> bool {
-        packet_or_single::<_, ShortStack<PacketEntry, MAX_DEPTH>, ShortStack<Entry, MAX_DEPTH>, _, false>(tree, rays, q, stats)
+        packet_or_single::<_, ShortStack<PacketEntry, MAX_DEPTH>, Entry, ShortStack<Entry, MAX_DEPTH>, _, false>(tree, rays, q, stats)
     }
 }
 impl PacketTraversal for Restart {
     #[inline(always)]
     fn run_packet<Q: Query, S: Stats>(tree: &KdTree, rays: &[Ray; PACKET], q: &mut [Q; PACKET], stats: &mut S) -> bool {
-        packet_or_single::<_, NoStack, NoStack, _, false>(tree, rays, q, stats)
+        packet_or_single::<_, NoStack, ExitEntry, NoStack, _, false>(tree, rays, q, stats)
     }
 }
 impl PacketTraversal for PushDown {
     #[inline(always)]
     fn run_packet<Q: Query, S: Stats>(tree: &KdTree, rays: &[Ray; PACKET], q: &mut [Q; PACKET], stats: &mut S) -> bool {
-        packet_or_single::<_, NoStack, NoStack, _, true>(tree, rays, q, stats)
+        packet_or_single::<_, NoStack, ExitEntry, NoStack, _, true>(tree, rays, q, stats)
     }
 }
 impl<const N: usize> PacketTraversal for Short<N> {
     #[inline(always)]
     fn run_packet<Q: Query, S: Stats>(tree: &KdTree, rays: &[Ray; PACKET], q: &mut [Q; PACKET], stats: &mut S) -> bool {
-        packet_or_single::<_, ShortStack<PacketEntry, N>, ShortStack<Entry, N>, _, true>(tree, rays, q, stats)
+        packet_or_single::<_, ShortStack<PacketEntry, N>, ExitEntry, ShortStack<ExitEntry, N>, _, true>(tree, rays, q, stats)
     }
 }

@@ -1,8 +1,8 @@
 //! The single-ray traversal family, one generic function: the stack kind (`NoStack`,
 //! `ShortStack<N>`, `FullStack`) and `PUSHDOWN` select kd-restart, push-down, short-stack or the
 //! classic full stack (see the module table in `kdtree`).
-use super::stack::{Entry, FullStack, NoStack, ShortStack, Stack as StackKind};
-use super::{KdTree, MAX_DEPTH};
+use super::stack::{Entry, ExitEntry, FullStack, NoStack, ShortStack, Stack as StackKind, StackEntry, NO_NODE};
+use super::{exit_bound, plane_band, KdTree, MAX_DEPTH, PLANE_TOL};
 use crate::query::{AnyHit, Closest, Query, Visitor};
 use crate::stats::Stats;
 use crate::aabb::{intersect_box, inv_dir};
@@ -13,23 +13,47 @@ use crate::math::pick3;
 use super::packet::PacketTraversal;
 
 /// Walks the tree for `q`. `PUSHDOWN` selects Horn's push-down restart node.
+///
+/// A split plane whose ray parameter lies within rounding of an end of the current interval
+/// (`plane_band`: a cell thinner along the ray than the rounding of t, or a ray starting on the
+/// plane) is resolved by visiting both children. A stack that may drop entries cannot promise
+/// that (a restart from the end of a leaf could pass over a cell that thin), so such a ray is
+/// traversed again from the start with the full stack: every variant returns the oracle's
+/// hits, whatever the cells' thickness and the ray's distance.
 #[inline(always)]
-pub fn traverse<Q: Visitor, K: StackKind<Entry>, S: Stats, const PUSHDOWN: bool>(
+pub fn traverse<Q: Visitor, E: StackEntry, K: StackKind<E>, S: Stats, const PUSHDOWN: bool>(
     tree: &KdTree,
     ray: &Ray,
     q: &mut Q,
     stack: &mut K,
     stats: &mut S,
 ) {
+    if !walk::<_, _, _, _, PUSHDOWN>(tree, ray, q, stack, stats) && !K::KEEPS_ALL {
+        stats.restart();
+        walk::<_, Entry, _, _, false>(tree, ray, q, &mut FullStack::new(), stats);
+    }
+}
+
+/// `traverse` with stack `stack`; returns `false` (the query left as it is, to be completed
+/// by a full-stack walk) where a stack that drops entries meets a plane too near an end of the
+/// interval to tell the order.
+#[inline(always)]
+fn walk<Q: Visitor, E: StackEntry, K: StackKind<E>, S: Stats, const PUSHDOWN: bool>(
+    tree: &KdTree,
+    ray: &Ray,
+    q: &mut Q,
+    stack: &mut K,
+    stats: &mut S,
+) -> bool {
     let r = match ShearedRay::new(ray) {
         Some(r) => r,
-        None => return,
+        None => return true,
     };
     let o = ray.origin;
     let inv = inv_dir(ray.dir);
     let (scene_t0, scene_t1) = match intersect_box(o, inv, &tree.bounds, ray.t_min, ray.t_max) {
         Some(i) => i,
-        None => return,
+        None => return true,
     };
     let prims = tree.prims();
     let n_nodes = tree.nodes.len() as u32;
@@ -41,12 +65,16 @@ pub fn traverse<Q: Visitor, K: StackKind<Entry>, S: Stats, const PUSHDOWN: bool>
     let mut node_idx = 0u32;
     let mut t0 = scene_t0;
     let mut t1 = scene_t1;
+    // Where entries may be dropped: the node whose plane ends the interval at t1, and after a
+    // restart the plane the ray restarts on (its t is t0 exactly: the ray goes beyond it).
+    let mut exit = NO_NODE;
+    let mut passed = NO_NODE;
     let mut pushdown = true;
     stack.clear();
     while steps < max_steps {
         steps += 1;
         if node_idx >= n_nodes {
-            return;
+            return true;
         }
         let node = tree.nodes[node_idx as usize];
         stats.node();
@@ -56,29 +84,46 @@ pub fn traverse<Q: Visitor, K: StackKind<Entry>, S: Stats, const PUSHDOWN: bool>
             let (ok, ik) = (pick3(o, k), pick3(inv, k));
             let below = node.first_child();
             let above = below + 1;
-            // The child the ray is in before the plane (A) and after it (B).
-            let (a, b, t_split) = if ik.is_infinite() {
+            if ik.is_infinite() {
                 // Parallel to the plane: the side of the origin (on the plane: below, which
                 // holds every triangle touching the plane too).
-                let c = if ok <= p { below } else { above };
-                (c, c, f32::INFINITY)
+                node_idx = if ok <= p { below } else { above };
             } else {
                 let ts = (p - ok) * ik;
-                if ik > 0.0 {
-                    (below, above, ts)
+                let band = if K::KEEPS_ALL { plane_band(ts) } else { PLANE_TOL * ts.abs() };
+                // The child the ray is in before the plane (a) and after it (b).
+                let (a, b) = if ik > 0.0 { (below, above) } else { (above, below) };
+                if !K::KEEPS_ALL {
+                    // A plane too near an end of the interval to tell the order (but the one
+                    // a restart starts on, which the ray is beyond: ts = t0 exactly there):
+                    // the full stack's walk decides. Otherwise the exact decisions.
+                    if node_idx != passed && ((ts - t0).abs() <= band + PLANE_TOL * t0.abs() || (ts - t1).abs() <= band + PLANE_TOL * t1.abs()) {
+                        return false;
+                    }
+                    if ts >= t1 {
+                        node_idx = a;
+                    } else if ts <= t0 {
+                        node_idx = b;
+                    } else {
+                        stack.push(E::new(b, ts, t1, exit));
+                        exit = node_idx;
+                        node_idx = a;
+                        t1 = ts;
+                        pushdown = false;
+                    }
+                } else if ts > t1 + band {
+                    node_idx = a;
+                } else if ts < t0 - band {
+                    node_idx = b;
                 } else {
-                    (above, below, ts)
+                    // The plane crosses the interval, or lies too near an end of it to tell:
+                    // both children, each with the interval clamped to the parent's.
+                    let ts = ts.max(t0).min(t1);
+                    stack.push(E::new(b, ts, t1, exit));
+                    node_idx = a;
+                    t1 = ts;
+                    pushdown = false;
                 }
-            };
-            if t_split >= t1 {
-                node_idx = a;
-            } else if t_split <= t0 {
-                node_idx = b;
-            } else {
-                stack.push(Entry { node: b, t0: t_split, t1 });
-                node_idx = a;
-                t1 = t_split;
-                pushdown = false;
             }
             if PUSHDOWN && pushdown {
                 restart_node = node_idx;
@@ -87,28 +132,33 @@ pub fn traverse<Q: Visitor, K: StackKind<Entry>, S: Stats, const PUSHDOWN: bool>
         }
         stats.leaf();
         q.leaf(&prims, node.prim_offset(), node.prim_count(), &r, ray.t_min, t1, stats);
-        if q.done(t1) {
-            return;
+        if q.done(exit_bound(t1)) {
+            return true;
         }
         match stack.pop() {
             Some(e) => {
-                node_idx = e.node;
-                t0 = e.t0;
-                t1 = e.t1;
+                node_idx = e.node();
+                t0 = e.t0();
+                t1 = e.t1();
+                exit = e.exit();
+                passed = NO_NODE;
             }
             None => {
                 if !stack.dropped() || t1 >= scene_t1 {
-                    return;
+                    return true;
                 }
                 stats.restart();
                 t0 = t1;
                 t1 = scene_t1;
+                passed = exit;
+                exit = NO_NODE;
                 node_idx = if PUSHDOWN { restart_node } else { 0 };
                 pushdown = true;
                 stack.clear();
             }
         }
     }
+    true
 }
 
 /// The algorithms by name. Short stacks of 1 to `MAX_SHORT_STACK` entries are instantiated.
@@ -203,24 +253,24 @@ pub struct Short<const N: usize>;
 impl Traversal for Full {
     #[inline(always)]
     fn run<V: Visitor, S: Stats>(tree: &KdTree, ray: &Ray, v: &mut V, stats: &mut S) {
-        traverse::<_, _, _, false>(tree, ray, v, &mut FullStack::new(), stats)
+        traverse::<_, Entry, _, _, false>(tree, ray, v, &mut FullStack::new(), stats)
     }
 }
 impl Traversal for Restart {
     #[inline(always)]
     fn run<V: Visitor, S: Stats>(tree: &KdTree, ray: &Ray, v: &mut V, stats: &mut S) {
-        traverse::<_, _, _, false>(tree, ray, v, &mut NoStack::new(), stats)
+        traverse::<_, ExitEntry, _, _, false>(tree, ray, v, &mut NoStack::new(), stats)
     }
 }
 impl Traversal for PushDown {
     #[inline(always)]
     fn run<V: Visitor, S: Stats>(tree: &KdTree, ray: &Ray, v: &mut V, stats: &mut S) {
-        traverse::<_, _, _, true>(tree, ray, v, &mut NoStack::new(), stats)
+        traverse::<_, ExitEntry, _, _, true>(tree, ray, v, &mut NoStack::new(), stats)
     }
 }
 impl<const N: usize> Traversal for Short<N> {
     #[inline(always)]
     fn run<V: Visitor, S: Stats>(tree: &KdTree, ray: &Ray, v: &mut V, stats: &mut S) {
-        traverse::<_, _, _, true>(tree, ray, v, &mut ShortStack::<Entry, N>::new(), stats)
+        traverse::<_, ExitEntry, _, _, true>(tree, ray, v, &mut ShortStack::<ExitEntry, N>::new(), stats)
     }
 }

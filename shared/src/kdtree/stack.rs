@@ -4,7 +4,27 @@
 //! (`Entry`) or a packet's four intervals and lane mask (`packet::PacketEntry`).
 use super::MAX_DEPTH;
 
-/// A far child of one ray and the part of the ray's interval inside it.
+/// No node: an interval that ends at the scene box, not at a split plane.
+pub const NO_NODE: u32 = u32::MAX;
+
+/// A far child of one ray and the part of the ray's interval inside it, as a stack keeps it:
+/// `Entry` for a full stack (which never restarts), `ExitEntry` where entries may be dropped
+/// (a restart needs the plane that ends the interval).
+pub trait StackEntry: Copy + Default {
+    /// The far child `node`, the interval [`t0`, `t1`] inside it, and the node whose plane ends
+    /// it at `t1` (`NO_NODE`: the scene box).
+    fn new(node: u32, t0: f32, t1: f32, exit: u32) -> Self;
+    /// The far child.
+    fn node(&self) -> u32;
+    /// Start of the interval.
+    fn t0(&self) -> f32;
+    /// End of the interval.
+    fn t1(&self) -> f32;
+    /// The node whose plane ends the interval (`NO_NODE` where not kept).
+    fn exit(&self) -> u32;
+}
+
+/// A far child of one ray and the part of the ray's interval inside it (12 bytes).
 #[derive(Copy, Clone, Default)]
 pub struct Entry {
     /// Index of the far child.
@@ -15,8 +35,65 @@ pub struct Entry {
     pub t1: f32,
 }
 
+impl StackEntry for Entry {
+    #[inline(always)]
+    fn new(node: u32, t0: f32, t1: f32, _exit: u32) -> Self {
+        Entry { node, t0, t1 }
+    }
+    #[inline(always)]
+    fn node(&self) -> u32 {
+        self.node
+    }
+    #[inline(always)]
+    fn t0(&self) -> f32 {
+        self.t0
+    }
+    #[inline(always)]
+    fn t1(&self) -> f32 {
+        self.t1
+    }
+    #[inline(always)]
+    fn exit(&self) -> u32 {
+        NO_NODE
+    }
+}
+
+/// `Entry` and the node whose split plane ends the interval, for stacks that may drop entries.
+#[derive(Copy, Clone, Default)]
+pub struct ExitEntry {
+    /// The far child and the interval inside it.
+    pub e: Entry,
+    /// The node whose plane ends the interval at `e.t1` (`NO_NODE`: the scene box).
+    pub exit: u32,
+}
+
+impl StackEntry for ExitEntry {
+    #[inline(always)]
+    fn new(node: u32, t0: f32, t1: f32, exit: u32) -> Self {
+        ExitEntry { e: Entry { node, t0, t1 }, exit }
+    }
+    #[inline(always)]
+    fn node(&self) -> u32 {
+        self.e.node
+    }
+    #[inline(always)]
+    fn t0(&self) -> f32 {
+        self.e.t0
+    }
+    #[inline(always)]
+    fn t1(&self) -> f32 {
+        self.e.t1
+    }
+    #[inline(always)]
+    fn exit(&self) -> u32 {
+        self.exit
+    }
+}
+
 /// Where a traversal keeps far children to visit later (`NoStack`, `ShortStack`, `FullStack`).
 pub trait Stack<E> {
+    /// Whether it never drops an entry (a full stack): then a traversal never restarts.
+    const KEEPS_ALL: bool;
     /// Empties the stack and resets `dropped`.
     fn clear(&mut self);
     /// Pushes `e`; `NoStack` drops it, a full `ShortStack` drops its oldest entry.
@@ -43,6 +120,7 @@ impl Default for NoStack {
     }
 }
 impl<E> Stack<E> for NoStack {
+    const KEEPS_ALL: bool = false;
     #[inline(always)]
     fn clear(&mut self) {
         self.dropped = false;
@@ -80,6 +158,7 @@ impl<E: Copy + Default, const N: usize> Default for ShortStack<E, N> {
     }
 }
 impl<E: Copy, const N: usize> Stack<E> for ShortStack<E, N> {
+    const KEEPS_ALL: bool = N >= MAX_DEPTH;
     #[inline(always)]
     fn clear(&mut self) {
         self.len = 0;
