@@ -12,7 +12,7 @@
 //! and a ray meeting a plane exactly at an end of its interval (starting on a flat wall, lying
 //! in the plane, ending on it, passing through a cell corner) finds its hit in whichever child
 //! it visits. Cells may be thinner than the rounding of a ray's t at their planes (any ray from
-//! far enough away sees them so): the traversals resolve that (`kdtree::ambiguous`); planes
+//! far enough away sees them so): the traversals resolve that (the rules in `kdray_shared::kdtree`, `plane_band`); planes
 //! stay out of gaps narrower than 2^-18 of the scene's extent (`MIN_GAP`) for speed only.
 use super::clip::{clipped_bounds, tri_bounds, Bounds};
 use crate::error::{bail, Result};
@@ -172,7 +172,7 @@ struct Ctx<'a> {
 /// Planes go only into gaps between event positions of at least this fraction of the scene's
 /// extent: geometry closer together than that — a face that is axis-aligned up to rounding
 /// noise — is not cut apart. Not for correctness (the traversals resolve cells of any
-/// thinness, `kdtree::ambiguous`) but for speed: a ray meeting a cell thinner than the
+/// thinness: the rules in `kdray_shared::kdtree`) but for speed: a ray meeting a cell thinner than the
 /// rounding of its t is traversed again with the full stack. Relative to the extent, not to
 /// the coordinates, so a scene far from the origin gets the tree it gets at the origin.
 const MIN_GAP: f32 = 1.0 / 262_144.0;
