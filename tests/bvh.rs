@@ -118,7 +118,7 @@ fn no_triangles_one_triangle_and_many_at_one_point() {
     assert_eq!((b.nodes.len(), b.tris.len()), (1, 0));
     let ray = Ray::new([0.0; 3], [0.0, 0.0, 1.0], 0.0, f32::INFINITY);
     let mut q = Closest::new(&ray);
-    kdray_shared::bvh::traverse(&Bvh { nodes: &b.nodes, tris: kdray_shared::bvh::TriWords::cast(&b.tris) }, &ray, &mut q, &mut NoStats);
+    kdray_shared::bvh::traverse(&Bvh { nodes: (&b.nodes[..]).into(), tris: kdray_shared::bvh::TriWords::cast(&b.tris).into() }, &ray, &mut q, &mut NoStats);
     assert!(!q.hit.is_hit());
 
     let one = common::mesh_scene("one", &[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], &[[0, 1, 2]]);

@@ -5,6 +5,7 @@ mod common;
 use kdray::image_out::compare;
 use kdray::integrator::direct;
 use kdray::runtime::cpu::NATIVE;
+use kdray::runtime::{Commands, Kernel, Pending, RawBuffer, Runtime};
 use kdray::{scene, Accel, Tracer};
 use kdray_shared::{camera, rng::Rng, shade, Hit, Ray};
 
@@ -46,7 +47,7 @@ fn cornell_256_closest_and_any_hit_cpu_vs_gpu() {
         .map(|(i, (r, h))| {
             let p = kdray_shared::RenderParams { seed: 5, light_count: lights.len() as u32, ..Default::default() };
             let (mut ray, mut path) = (*r, kdray_shared::PathState::start(i as u32));
-            shade::path_step(&p, 0, &mut ray, h, &mut path, &scene.triangles, &scene.materials, &lights).0
+            shade::path_step(&p, 0, &mut ray, h, &mut path, &kdray_shared::parts::Parts::one(&scene.triangles), &scene.materials, &lights).0
         })
         .collect();
     let (ca, ga) = (cpu.any_hits(Accel::BRUTE, &shadow).unwrap(), gpu.any_hits(Accel::BRUTE, &shadow).unwrap());
@@ -409,4 +410,159 @@ fn counting_sort_on_both_runtimes() {
         }
         assert!(all.windows(2).all(|w| w[0] == w[1]));
     }
+}
+
+/// A runtime that splits every scene array into two or three parts (`Runtime::split_shift`),
+/// whatever its size; otherwise `rt` itself.
+struct SplitAll<'a>(&'a dyn Runtime);
+
+impl Runtime for SplitAll<'_> {
+    fn split_shift(&self, _label: &str, len: usize, _elem: usize) -> kdray::Result<Option<u32>> {
+        Ok((len >= 2).then(|| (1..30).find(|s| len.div_ceil(1 << s) <= 3).unwrap()))
+    }
+    fn name(&self) -> String {
+        format!("{} (arrays split)", self.0.name())
+    }
+    fn is_native(&self) -> bool {
+        self.0.is_native()
+    }
+    fn is_software(&self) -> bool {
+        self.0.is_software()
+    }
+    fn max_binding(&self) -> u64 {
+        self.0.max_binding()
+    }
+    fn alloc_raw(&self, label: &str, bytes: u64) -> kdray::Result<RawBuffer> {
+        self.0.alloc_raw(label, bytes)
+    }
+    fn write_raw(&self, buf: &RawBuffer, data: &[u8]) -> kdray::Result<()> {
+        self.0.write_raw(buf, data)
+    }
+    fn begin(&self) -> Commands {
+        self.0.begin()
+    }
+    fn clear(&self, c: &mut Commands, buf: &RawBuffer) -> kdray::Result<()> {
+        self.0.clear(c, buf)
+    }
+    fn dispatch(&self, c: &mut Commands, k: &dyn Kernel) -> kdray::Result<()> {
+        self.0.dispatch(c, k)
+    }
+    fn dispatch_indirect(&self, c: &mut Commands, k: &dyn Kernel, args: &kdray::runtime::Buffer<[u32; 3]>, index: usize) -> kdray::Result<()> {
+        self.0.dispatch_indirect(c, k, args, index)
+    }
+    fn read_back(&self, c: &mut Commands, buf: &RawBuffer, bytes: u64) -> kdray::Result<Pending> {
+        self.0.read_back(c, buf, bytes)
+    }
+    fn submit(&self, c: Commands) -> kdray::Result<()> {
+        self.0.submit(c)
+    }
+    fn wait(&self, p: Pending) -> kdray::Result<Vec<u32>> {
+        self.0.wait(p)
+    }
+    fn finish(&self) -> kdray::Result<()> {
+        self.0.finish()
+    }
+}
+
+/// Scenes larger than one storage binding (#11): the triangles and the kd-tree's and the BVH's
+/// arrays are uploaded in up to three parts, bound side by side, and read through a
+/// specialization constant. With every array split (`SplitAll`), every traversal gives the
+/// answers it gives with the arrays whole, bit for bit, natively and on the GPU, and so do the
+/// path tracer and photon mapping; the kd photon index over split nodes is one clear error.
+#[test]
+fn scene_arrays_split_across_bindings_give_the_same_answers() {
+    use kdray::integrator::path::{self, PathOptions};
+    use kdray::integrator::photon::{self as pm, FinalGather, IndexKind, PhotonMap, PhotonOptions};
+    use kdray::kdtree::{build, BuildOptions};
+    use kdray_shared::kdtree::Algorithm;
+    let scene = scene::load("cornell-glass").unwrap();
+    let tree = build(&scene.triangles, &BuildOptions::default());
+    let bvh = kdray::bvh::build(&scene.triangles);
+    let mut rays: Vec<Ray> = common::random_dirs(900, 11).iter().map(|d| Ray::new([278.0, 300.0, 279.5], *d, 0.0, f32::INFINITY)).collect();
+    // Rays from outside the box, through the sphere, at the light.
+    rays.extend(common::random_dirs(300, 12).iter().map(|d| Ray::new([278.0 + 900.0 * d[0], 273.0 + 900.0 * d[1], 279.5 + 900.0 * d[2]], [-d[0], -d[1], -d[2]], 0.0, f32::INFINITY)));
+    let mut accels = Accel::all();
+    accels.extend(Accel::gpu_packets());
+    accels.extend([Accel::decomposed(4), Accel::BVH]);
+    let cam = scene.camera.to_pod(24, 24);
+    let mut runtimes: Vec<&dyn Runtime> = vec![&NATIVE];
+    if let Some(g) = common::gpu() {
+        runtimes.push(g);
+    }
+    for whole_rt in runtimes {
+        let split_rt = SplitAll(whole_rt);
+        let whole = Tracer::new(whole_rt, &scene, Some(&tree)).unwrap().with_bvh(&bvh).unwrap();
+        let split = Tracer::new(&split_rt, &scene, Some(&tree)).unwrap().with_bvh(&bvh).unwrap();
+        let name = split_rt.name();
+        let kdray::tracer::AccelStructure::KdTree { nodes, prims, .. } = &split.structure else { panic!("a kd-tree was given") };
+        let b = split.bvh.as_ref().unwrap();
+        let parts = [split.tris.parts().len(), nodes.parts().len(), prims.parts().len(), b.nodes.parts().len(), b.tris.parts().len()];
+        assert!(parts.iter().all(|&n| n >= 2), "{name}: {parts:?}");
+        assert_eq!(whole.tris.parts().len(), 1);
+        for &accel in &accels {
+            let (h0, h1) = (whole.closest_hits(accel, &rays).unwrap(), split.closest_hits(accel, &rays).unwrap());
+            let differ = (0..rays.len()).filter(|&i| h0[i] != h1[i]).count();
+            assert_eq!(differ, 0, "{name} {}: {differ} of {} closest hits differ with the arrays split", accel.name(), rays.len());
+            let hit = h0.iter().filter(|h| h.is_hit()).count();
+            assert!(hit > 900, "{name} {}: {hit} of {} rays hit the box", accel.name(), rays.len());
+            assert_eq!(whole.any_hits(accel, &rays).unwrap(), split.any_hits(accel, &rays).unwrap(), "{name} {}: any hits differ", accel.name());
+        }
+        for accel in [Accel::kd(Algorithm::ShortStack(3)), Accel::BVH, Accel::BRUTE] {
+            for fused in [true, false] {
+                let o = PathOptions { fused, ..PathOptions::path(5, 4, 2) };
+                let (a, b) = (path::render(&whole, accel, &cam, &o, &()).unwrap(), path::render(&split, accel, &cam, &o, &()).unwrap());
+                assert!(a.radiance == b.radiance && a.hits == b.hits, "{name} {} (fused: {fused}): the path-traced image differs", accel.name());
+            }
+            for fused in [true, false] {
+                let o = PhotonOptions { photons: 2000, passes: 2, index: IndexKind::Grid, final_gather: FinalGather::Off, fused, ..Default::default() };
+                let render = |t: &Tracer| {
+                    let mut map = PhotonMap::new(t, accel, Some(&tree), scene.surface_area(), o.clone()).unwrap();
+                    pm::render(&mut map, &cam, &()).unwrap().0
+                };
+                let (a, b) = (render(&whole), render(&split));
+                assert!(a.radiance == b.radiance, "{name} {} (fused: {fused}): the photon-mapped image differs", accel.name());
+            }
+        }
+        let o = PhotonOptions { photons: 4000, passes: 1, index: IndexKind::Kd, ..Default::default() };
+        let e = PhotonMap::new(&split, Accel::kd(Algorithm::Stack), Some(&tree), scene.surface_area(), o).err().expect("the kd index over split nodes is refused");
+        assert!(format!("{e:#}").contains("use the grid index"), "{e:#}");
+    }
+}
+
+/// The default split (`Runtime::split_shift`) follows the binding limit: on a runtime whose
+/// limit is lowered — natively (`Cpu::with_split_limit`) and on the GPU
+/// (`Gpu::split_arrays_above`) — the glass-sphere box's triangles go into three parts of 2^13 and
+/// its kd nodes into two of 2^16, and hits are unchanged; an array past three parts is one
+/// error naming the buffer and the limit.
+#[test]
+fn scene_arrays_split_at_the_binding_limit() {
+    use kdray::kdtree::{build, BuildOptions};
+    use kdray::runtime::Cpu;
+    use kdray_shared::kdtree::Algorithm;
+    let scene = scene::load("cornell-glass").unwrap();
+    let tree = build(&scene.triangles, &BuildOptions::default());
+    let rays: Vec<Ray> = common::random_dirs(2000, 13).iter().map(|d| Ray::new([278.0, 300.0, 279.5], *d, 0.0, f32::INFINITY)).collect();
+    let limit = 512 << 10;
+    let native = Cpu::with_split_limit(limit);
+    let gpu = common::gpu().map(|_| {
+        let g = kdray::Gpu::new().unwrap();
+        g.split_arrays_above(limit);
+        g
+    });
+    let mut pairs: Vec<(&dyn Runtime, &dyn Runtime)> = vec![(&NATIVE, &native)];
+    if let (Some(g), Some(s)) = (common::gpu(), gpu.as_ref()) {
+        pairs.push((g, s));
+    }
+    for (whole_rt, split_rt) in pairs {
+        let t = Tracer::new(split_rt, &scene, Some(&tree)).unwrap();
+        let kdray::tracer::AccelStructure::KdTree { nodes, prims, .. } = &t.structure else { panic!("a kd-tree was given") };
+        assert_eq!([t.tris.parts().len(), nodes.parts().len(), prims.parts().len()], [3, 2, 1], "{}", split_rt.name());
+        let w = Tracer::new(whole_rt, &scene, Some(&tree)).unwrap();
+        for accel in [Accel::kd(Algorithm::ShortStack(3)), Accel::BRUTE] {
+            assert_eq!(t.closest_hits(accel, &rays).unwrap(), w.closest_hits(accel, &rays).unwrap(), "{} {}", split_rt.name(), accel.name());
+        }
+    }
+    let e = Tracer::new(&Cpu::with_split_limit(64 << 10), &scene, None).err().expect("20 502 triangles in parts of 64 KiB are refused");
+    let msg = format!("{e:#}");
+    assert_eq!(msg, "scene too large for this machine: the triangle buffer needs 961.0 KiB, more than 3 storage buffers of 48.0 KiB (CPU (2 threads) allows at most 64.0 KiB per storage buffer)".replace("2 threads", &format!("{} threads", rayon::current_num_threads())));
 }

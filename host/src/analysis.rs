@@ -8,6 +8,7 @@ use kdray_shared::brute::BruteForce;
 use kdray_shared::kdtree::{self, KdTree, PACKET};
 use kdray_shared::query::{AnyHit, Closest, Query};
 use kdray_shared::stats::{Counters, NoStats, Stats};
+use kdray_shared::parts::Parts;
 use kdray_shared::{Ray, Triangle};
 use rayon::prelude::*;
 
@@ -22,12 +23,12 @@ fn group(rays: &[Ray]) -> [Ray; PACKET] {
 fn trace4<Q: Query + BruteForce, S: Stats>(tree: &KdTree, accel: Accel, rays: &[Ray; PACKET], stats: &mut S) -> [Q; PACKET] {
     let mut q = rays.each_ref().map(Q::new);
     match (accel.structure, accel.grouping, accel.pipeline) {
-        (Structure::Brute, _, _) => q.iter_mut().zip(rays).for_each(|(q, r)| q.brute(r, tree.tris)),
+        (Structure::Brute, _, _) => q.iter_mut().zip(rays).for_each(|(q, r)| q.brute(r, &tree.tris)),
         (Structure::Bvh, _, _) => unreachable!("`counts` refuses the BVH"),
         (_, _, Pipeline::Decomposed { capacity }) => {
             for (q, r) in q.iter_mut().zip(rays) {
                 let l = kdtree::record_leaves(tree, r, capacity, stats);
-                if !kdtree::intersect_leaves(tree, r, &l.entries, 0, l.status(), q, stats) {
+                if !kdtree::intersect_leaves(&tree.prims(), r, &l.entries, 0, l.status(), q, stats) {
                     *q = Q::new(r);
                     kdtree::run(kdtree::Algorithm::Stack, tree, r, q, stats);
                 }
@@ -66,7 +67,7 @@ pub fn counts(tris: &[Triangle], tree: &KdTreeData, accel: Accel, rays: &[Ray], 
 /// Traversal counters of the wide BVH (closest hit if `closest`, else any hit), one per group
 /// of four rays in order (summed over the four), like `counts`.
 pub fn bvh_counts(bvh: &crate::bvh::BvhData, rays: &[Ray], closest: bool) -> Vec<Counters> {
-    let b = kdray_shared::bvh::Bvh { nodes: &bvh.nodes, tris: kdray_shared::bvh::TriWords::cast(&bvh.tris) };
+    let b = kdray_shared::bvh::Bvh { nodes: Parts::one(&bvh.nodes), tris: Parts::one(kdray_shared::bvh::TriWords::cast(&bvh.tris)) };
     rays.par_chunks(PACKET)
         .map(|c| {
             let mut s = Counters::default();
@@ -90,9 +91,9 @@ pub fn decomposed_fallbacks(tris: &[Triangle], tree: &KdTreeData, rays: &[Ray], 
         .filter(|r| {
             let l = kdtree::record_leaves(&tree, r, capacity, &mut NoStats);
             if closest {
-                !kdtree::intersect_leaves(&tree, r, &l.entries, 0, l.status(), &mut Closest::new(r), &mut NoStats)
+                !kdtree::intersect_leaves(&tree.prims(), r, &l.entries, 0, l.status(), &mut Closest::new(r), &mut NoStats)
             } else {
-                !kdtree::intersect_leaves(&tree, r, &l.entries, 0, l.status(), &mut AnyHit::new(r), &mut NoStats)
+                !kdtree::intersect_leaves(&tree.prims(), r, &l.entries, 0, l.status(), &mut AnyHit::new(r), &mut NoStats)
             }
         })
         .count()

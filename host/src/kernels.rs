@@ -6,7 +6,7 @@
 //! Adding a kernel: a per-item function in `shared/src/<capability>.rs`, a thin entry point in
 //! `shader-crate/src/<capability>.rs`, and a struct here with `entry`, `bindings` and `run`
 //! (see `RngFill`, the smallest).
-use crate::runtime::{read, write, Bind, Buffer, HostStore, Kernel};
+use crate::runtime::{read, read_split, write, Bind, Buffer, HostStore, Kernel, SplitBuffer};
 use bytemuck::Pod;
 use kdray_shared::kdtree::{KdNode, KdTree, LeafRef, PacketTraversal, Traversal, WithTraversal, PACKET};
 use kdray_shared::query::{AnyHit, Answer, Closest, Query};
@@ -34,10 +34,11 @@ impl QueryKind for AnyHit {
     const PREFIX: &'static str = "any";
 }
 
-/// The scene as the ray-query kernels bind it: the triangles and the structure's two arrays.
+/// The scene as the ray-query kernels bind it: the triangles and the structure's two arrays,
+/// each whole or split across bindings (`SplitBuffer`).
 pub struct SceneBinds<'a> {
     /// The triangles (`Hit::prim` indexes them).
-    pub tris: &'a Buffer<Triangle>,
+    pub tris: &'a SplitBuffer<Triangle>,
     /// The acceleration structure's arrays.
     pub structure: StructureBinds<'a>,
 }
@@ -48,16 +49,16 @@ pub enum StructureBinds<'a> {
     /// The kd-tree (bound as `nodes`, `prims`; brute force binds placeholders).
     Kd {
         /// The kd-tree's nodes (`nodes[0]` is the root).
-        nodes: &'a Buffer<KdNode>,
+        nodes: &'a SplitBuffer<KdNode>,
         /// The primitive index list: each leaf holds a range of it, each entry an index into `tris`.
-        prims: &'a Buffer<u32>,
+        prims: &'a SplitBuffer<u32>,
     },
     /// The compressed wide BVH (bound as `bvh`, `bvh_tris`).
     Bvh {
         /// The BVH's nodes (`nodes[0]` is the root).
-        nodes: &'a Buffer<BvhNode>,
+        nodes: &'a SplitBuffer<BvhNode>,
         /// The triangles in leaf order, each with its scene index in `_pad`.
-        tris: &'a Buffer<Triangle>,
+        tris: &'a SplitBuffer<Triangle>,
     },
 }
 
@@ -71,11 +72,13 @@ impl<'a> SceneBinds<'a> {
         unsafe { KdTree::view(self, Aabb { min: p.bounds_min, max: p.bounds_max }) }
     }
 
-    fn binds(&self) -> [Bind<'a>; 3] {
-        match self.structure {
-            StructureBinds::Kd { nodes, prims } => [read("tris", self.tris), read("nodes", nodes), read("prims", prims)],
-            StructureBinds::Bvh { nodes, tris } => [read("tris", self.tris), read("bvh", nodes), read("bvh_tris", tris)],
-        }
+    /// The triangles' and the structure's bindings, each array in its parts.
+    fn binds(&self) -> Vec<Bind<'a>> {
+        let (a, b) = match self.structure {
+            StructureBinds::Kd { nodes, prims } => (read_split("nodes", nodes), read_split("prims", prims)),
+            StructureBinds::Bvh { nodes, tris } => (read_split("bvh", nodes), read_split("bvh_tris", tris)),
+        };
+        read_split("tris", self.tris).into_iter().chain(a).chain(b).collect()
     }
 }
 
@@ -101,7 +104,7 @@ impl<'a> View<'a> for Bvh<'a> {
     unsafe fn view(s: &SceneBinds<'a>, _bounds: Aabb) -> Self {
         match s.structure {
             // SAFETY: the caller's contract.
-            StructureBinds::Bvh { nodes, tris } => unsafe { Bvh { nodes: nodes.host(), tris: TriWords::cast(tris.host()) } },
+            StructureBinds::Bvh { nodes, tris } => unsafe { Bvh { nodes: nodes.host(), tris: TriWords::parts(tris.host()) } },
             StructureBinds::Kd { .. } => panic!("a BVH kernel bound to a kd-tree"),
         }
     }
@@ -317,7 +320,7 @@ impl<Q: QueryKind> Kernel for IntersectListed<'_, Q> {
         // its bindings; item t reads and writes only its own elements of what it writes.
         unsafe {
             let tree = self.scene.tree(&self.params);
-            trace::intersect_listed::<Q, _, _>(t, &self.params, self.rays.host(), &tree, self.lists.host(), &mut self.status.host_store(), &mut self.out.host_store())
+            trace::intersect_listed::<Q, _, _>(t, &self.params, self.rays.host(), &tree.prims(), self.lists.host(), &mut self.status.host_store(), &mut self.out.host_store())
         }
     }
 }
@@ -434,7 +437,7 @@ pub struct PathStep<'a> {
     /// when the path ends.
     pub rays: &'a Buffer<Ray>,
     /// The scene's triangles.
-    pub tris: &'a Buffer<Triangle>,
+    pub tris: &'a SplitBuffer<Triangle>,
     /// Each path's closest hit at this bounce.
     pub hits: &'a Buffer<Hit>,
     /// The materials (`Triangle::material` indexes them).
@@ -457,16 +460,17 @@ impl Kernel for PathStep<'_> {
         bytemuck::bytes_of(&self.params)
     }
     fn bindings(&self) -> Vec<Bind<'_>> {
-        vec![
-            write("rays", self.rays),
-            read("tris", self.tris),
+        let mut b = vec![write("rays", self.rays)];
+        b.extend(read_split("tris", self.tris));
+        b.extend([
             read("hits", self.hits),
             read("materials", self.materials),
             read("lights", self.lights),
             write("paths", self.paths),
             write("shadow_rays", self.shadow_rays),
             write("terms", self.terms),
-        ]
+        ]);
+        b
     }
     fn threads(&self) -> u32 {
         self.params.count
@@ -479,7 +483,7 @@ impl Kernel for PathStep<'_> {
                 t,
                 &self.params,
                 &mut self.rays.host_store(),
-                self.tris.host(),
+                &self.tris.host(),
                 self.hits.host(),
                 self.materials.host(),
                 self.lights.host(),
@@ -828,7 +832,7 @@ pub struct PhotonBounce<'a> {
     /// Each photon's closest hit at this bounce.
     pub hits: &'a Buffer<Hit>,
     /// The scene's triangles.
-    pub tris: &'a Buffer<Triangle>,
+    pub tris: &'a SplitBuffer<Triangle>,
     /// The materials (`Triangle::material` indexes them).
     pub materials: &'a Buffer<Material>,
     /// Read and written: each photon's power and state.
@@ -848,15 +852,10 @@ impl Kernel for PhotonBounce<'_> {
         bytemuck::bytes_of(&self.params)
     }
     fn bindings(&self) -> Vec<Bind<'_>> {
-        vec![
-            write("rays", self.rays),
-            read("hits", self.hits),
-            read("tris", self.tris),
-            read("materials", self.materials),
-            write("paths", self.paths),
-            write("photons", self.photons),
-            write("counter", self.counter),
-        ]
+        let mut b = vec![write("rays", self.rays), read("hits", self.hits)];
+        b.extend(read_split("tris", self.tris));
+        b.extend([read("materials", self.materials), write("paths", self.paths), write("photons", self.photons), write("counter", self.counter)]);
+        b
     }
     fn threads(&self) -> u32 {
         self.params.count
@@ -871,7 +870,7 @@ impl Kernel for PhotonBounce<'_> {
                 &self.params,
                 &mut self.rays.host_store(),
                 self.hits.host(),
-                self.tris.host(),
+                &self.tris.host(),
                 self.materials.host(),
                 &mut self.paths.host_store(),
                 &mut self.photons.host_store(),
@@ -1064,7 +1063,7 @@ where
         let (tris, lights, materials) = (k.scene.tris.host(), k.lights.host(), k.materials.host());
         let (mut photons, mut counter) = (k.photons.host_store(), k.counter.host_store());
         for t in ts {
-            photon::trace_photon::<M, HostStore<'a, Photon>, HostStore<'a, u32>>(t, p, &accel, tris, lights, materials, &mut photons, &mut counter)
+            photon::trace_photon::<M, HostStore<'a, Photon>, HostStore<'a, u32>>(t, p, &accel, &tris, lights, materials, &mut photons, &mut counter)
         }
     }
 }
@@ -1131,8 +1130,10 @@ impl Kernel for TracePhotons<'_> {
         bytemuck::bytes_of(&self.params)
     }
     fn bindings(&self) -> Vec<Bind<'_>> {
-        let [tris, nodes, prims] = self.scene.binds();
-        vec![read("lights", self.lights), tris, nodes, prims, read("materials", self.materials), write("photons", self.photons), write("counter", self.counter)]
+        let mut b = vec![read("lights", self.lights)];
+        b.extend(self.scene.binds());
+        b.extend([read("materials", self.materials), write("photons", self.photons), write("counter", self.counter)]);
+        b
     }
     fn threads(&self) -> u32 {
         self.params.count
@@ -1160,7 +1161,7 @@ where
         let (tris, materials, lights) = (k.scene.tris.host(), k.materials.host(), k.lights.host());
         let (mut rays, mut paths, mut hits) = (k.rays.host_store(), k.paths.host_store(), k.primary_hits.host_store());
         for t in ts {
-            render::trace_path::<M, HostStore<'a, Ray>, HostStore<'a, PathState>, HostStore<'a, Hit>>(t, &k.params, &accel, tris, materials, lights, &mut rays, &mut paths, &mut hits)
+            render::trace_path::<M, HostStore<'a, Ray>, HostStore<'a, PathState>, HostStore<'a, Hit>>(t, &k.params, &accel, &tris, materials, lights, &mut rays, &mut paths, &mut hits)
         }
     }
 }
@@ -1232,18 +1233,16 @@ impl Kernel for TracePaths<'_> {
         bytemuck::bytes_of(&self.params)
     }
     fn bindings(&self) -> Vec<Bind<'_>> {
-        let [tris, nodes, prims] = self.scene.binds();
-        vec![
-            read("scene_box", self.scene_box),
-            tris,
-            nodes,
-            prims,
+        let mut b = vec![read("scene_box", self.scene_box)];
+        b.extend(self.scene.binds());
+        b.extend([
             read("materials", self.materials),
             read("lights", self.lights),
             write("rays", self.rays),
             write("paths", self.paths),
             write("primary_hits", self.primary_hits),
-        ]
+        ]);
+        b
     }
     fn threads(&self) -> u32 {
         self.params.count

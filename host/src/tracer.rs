@@ -7,7 +7,7 @@ use crate::accel::{Accel, Grouping, Pipeline, Structure};
 use crate::kdtree::KdTreeData;
 use crate::bvh::BvhData;
 use crate::kernels::{Fallback, IntersectListed, QueryKind, SceneBinds, StructureBinds, Trace, TraceMethod, TraverseLeaves};
-use crate::runtime::{cast, Buffer, Kernel, RawBuffer, Runtime};
+use crate::runtime::{cast, Buffer, Kernel, RawBuffer, Runtime, SplitBuffer};
 use crate::scene::Scene;
 use crate::error::{bail, Result};
 use kdray_shared::aabb::Aabb;
@@ -30,9 +30,9 @@ pub enum AccelStructure {
     /// The kd-tree's arrays (`KdTreeData`).
     KdTree {
         /// The tree's nodes.
-        nodes: Buffer<KdNode>,
+        nodes: SplitBuffer<KdNode>,
         /// The leaves' triangle indices.
-        prims: Buffer<u32>,
+        prims: SplitBuffer<u32>,
         /// The tree's root cell.
         bounds: Aabb,
     },
@@ -41,9 +41,9 @@ pub enum AccelStructure {
 /// The compressed wide BVH's arrays (`BvhData`) on a runtime.
 pub struct BvhBuffers {
     /// The nodes.
-    pub nodes: Buffer<BvhNode>,
+    pub nodes: SplitBuffer<BvhNode>,
     /// The triangles in leaf order, each with its scene index in `_pad`.
-    pub tris: Buffer<Triangle>,
+    pub tris: SplitBuffer<Triangle>,
 }
 
 /// FNV-1a over the triangles' vertices, material and face ids, in order.
@@ -72,8 +72,9 @@ pub struct LeafLists {
 pub struct Tracer<'r> {
     /// The runtime that holds the buffers and runs the passes.
     pub rt: &'r dyn Runtime,
-    /// The scene's triangles, in `Scene::triangles` order (`Hit::prim` indexes them).
-    pub tris: Buffer<Triangle>,
+    /// The scene's triangles, in `Scene::triangles` order (`Hit::prim` indexes them); split
+    /// across bindings when larger than one (as are the structures' arrays).
+    pub tris: SplitBuffer<Triangle>,
     /// The scene's materials.
     pub materials: Buffer<Material>,
     /// `Scene::lights` (one zeroed entry if there are none: see `light_count`).
@@ -85,8 +86,8 @@ pub struct Tracer<'r> {
     /// The traversals' root box (min, max; `trace_bounds`) for the whole-path kernels.
     pub scene_box: Buffer<[f32; 4]>,
     /// Bound in place of the tree's arrays by kernels that do not use them (brute force).
-    no_nodes: Buffer<KdNode>,
-    no_prims: Buffer<u32>,
+    no_nodes: SplitBuffer<KdNode>,
+    no_prims: SplitBuffer<u32>,
     scene_bounds: Aabb,
     /// Number of lights in `lights`.
     pub light_count: u32,
@@ -116,7 +117,7 @@ impl<'r> Tracer<'r> {
         let lights = scene.lights();
         let (lo, hi) = scene.bounds();
         let structure = match tree {
-            Some(t) => AccelStructure::KdTree { nodes: rt.upload("kd-tree node", &t.nodes)?, prims: rt.upload("kd-tree primitive index", &t.prims)?, bounds: t.bounds },
+            Some(t) => AccelStructure::KdTree { nodes: rt.upload_split("kd-tree node", &t.nodes)?, prims: rt.upload_split("kd-tree primitive index", &t.prims)?, bounds: t.bounds },
             None => AccelStructure::Triangles,
         };
         let root = match &structure {
@@ -127,13 +128,13 @@ impl<'r> Tracer<'r> {
         Ok(Tracer {
             scene_box,
             rt,
-            tris: rt.upload("triangle", &scene.triangles)?,
+            tris: rt.upload_split("triangle", &scene.triangles)?,
             materials: rt.upload("material", &scene.materials)?,
             lights: rt.upload("light", &lights)?,
             structure,
             bvh: None,
-            no_nodes: rt.alloc("no kd-tree nodes", 1)?,
-            no_prims: rt.alloc("no kd-tree primitives", 1)?,
+            no_nodes: rt.upload_split("no kd-tree nodes", &[KdNode::default()])?,
+            no_prims: rt.upload_split("no kd-tree primitives", &[0])?,
             scene_bounds: Aabb { min: lo.to_array(), max: hi.to_array() },
             light_count: lights.len() as u32,
             has_specular: scene.has_specular(),
@@ -155,8 +156,23 @@ impl<'r> Tracer<'r> {
         if geometry_fingerprint(order.into_iter()) != self.tri_fingerprint {
             bail!(InvalidInput: "the BVH was built over other triangles than this scene's");
         }
-        self.bvh = Some(BvhBuffers { nodes: self.rt.upload("BVH node", &bvh.nodes)?, tris: self.rt.upload("BVH triangle", &bvh.tris)? });
+        self.bvh = Some(BvhBuffers { nodes: self.rt.upload_split("BVH node", &bvh.nodes)?, tris: self.rt.upload_split("BVH triangle", &bvh.tris)? });
         Ok(self)
+    }
+
+    /// The scene arrays held in more than one buffer (larger than one storage binding), with
+    /// their part counts: e.g. `triangles in 2 buffers, kd-tree nodes in 3`; `None` if all are
+    /// whole.
+    pub fn split_summary(&self) -> Option<String> {
+        let mut v = vec![("triangles", self.tris.parts().len())];
+        if let AccelStructure::KdTree { nodes, prims, .. } = &self.structure {
+            v.extend([("kd-tree nodes", nodes.parts().len()), ("kd-tree primitive indices", prims.parts().len())]);
+        }
+        if let Some(b) = &self.bvh {
+            v.extend([("BVH nodes", b.nodes.parts().len()), ("BVH triangles", b.tris.parts().len())]);
+        }
+        let split: Vec<String> = v.into_iter().filter(|(_, n)| *n > 1).map(|(what, n)| format!("{what} in {n} buffers")).collect();
+        (!split.is_empty()).then(|| split.join(", "))
     }
 
     /// The box the traversals start from (the kd-tree's root cell, else the scene's box).

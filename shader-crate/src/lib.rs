@@ -6,6 +6,11 @@
 //! SPIR-V module itself and checks its typed passes against them, so nothing here is listed
 //! again on the host.
 //!
+//! Arrays of the scene that may exceed one storage binding (`kdray_shared::parts::SPLIT_BINDINGS`:
+//! triangles, kd-tree nodes and primitive indices, BVH nodes and triangles) are bound as three
+//! parts each (`tris`, `tris1`, `tris2`, …) with a specialization constant saying how they are
+//! split; the host binds one buffer thrice for a scene that fits.
+//!
 //! Work items are numbered over a 2D grid of workgroups so a dispatch can exceed the 65 535-
 //! workgroup limit of one dimension: `item = x + y · (groups_x · WORKGROUP)`.
 //!
@@ -33,18 +38,26 @@ pub use sort::*;
 pub use photon::*;
 
 use kdray_shared::kernel::AtomicStore;
+use kdray_shared::parts::Parts;
 use spirv_std::glam::UVec3;
+
+/// An array bound as up to three parts (`kdray_shared::parts`): `split` is the array's
+/// specialization constant, whose default 0 (one part) the driver folds.
+#[inline(always)]
+pub fn parts<'a, T: Copy>(split: u32, p0: &'a [T], p1: &'a [T], p2: &'a [T]) -> Parts<'a, T> {
+    Parts::new(split, p0, p1, p2)
+}
 
 /// The kd-tree (or, for brute force, the triangles) as the whole-path kernels see it.
 #[inline(always)]
-pub fn kd_view<'a>(bounds: kdray_shared::aabb::Aabb, tris: &'a [kdray_shared::Triangle], nodes: &'a [kdray_shared::kdtree::KdNode], prims: &'a [u32]) -> kdray_shared::kdtree::KdTree<'a> {
+pub fn kd_view<'a>(bounds: kdray_shared::aabb::Aabb, tris: Parts<'a, kdray_shared::Triangle>, nodes: Parts<'a, kdray_shared::kdtree::KdNode>, prims: Parts<'a, u32>) -> kdray_shared::kdtree::KdTree<'a> {
     kdray_shared::kdtree::KdTree { nodes, prims, tris, bounds }
 }
 
 /// The wide BVH as the whole-path kernels see it (its nodes and leaf-ordered triangles; the
 /// scene's box and triangles are not part of it).
 #[inline(always)]
-pub fn bvh_view<'a>(_bounds: kdray_shared::aabb::Aabb, _tris: &'a [kdray_shared::Triangle], bvh: &'a [kdray_shared::bvh::BvhNode], bvh_tris: &'a [kdray_shared::bvh::TriWords]) -> kdray_shared::bvh::Bvh<'a> {
+pub fn bvh_view<'a>(_bounds: kdray_shared::aabb::Aabb, _tris: Parts<'a, kdray_shared::Triangle>, bvh: Parts<'a, kdray_shared::bvh::BvhNode>, bvh_tris: Parts<'a, kdray_shared::bvh::TriWords>) -> kdray_shared::bvh::Bvh<'a> {
     kdray_shared::bvh::Bvh { nodes: bvh, tris: bvh_tris }
 }
 

@@ -2,7 +2,7 @@
 //! paths (emission to absorption in one thread, for brute force, two kd traversals and the BVH), the
 //! index's keys and permutation, and the gather, for both photon indices (hashed grid, kd
 //! leaves).
-use crate::Atomics;
+use crate::{parts, Atomics};
 use kdray_shared::aabb::Aabb;
 use kdray_shared::bvh::{BvhNode, TriWords};
 use kdray_shared::kdtree::{Full, KdNode, Short};
@@ -29,15 +29,19 @@ pub fn photon_bounce(
     #[spirv(global_invocation_id)] id: UVec3,
     #[spirv(num_workgroups)] groups: UVec3,
     #[spirv(push_constant)] params: &PhotonParams,
+    #[spirv(spec_constant(id = 0))] split: u32,
     #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] rays: &mut [Ray],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] hits: &[Hit],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] tris: &[Triangle],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] materials: &[Material],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] paths: &mut [PhotonPath],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] photons: &mut [Photon],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] counter: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] tris1: &[Triangle],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] tris2: &[Triangle],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] materials: &[Material],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] paths: &mut [PhotonPath],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] photons: &mut [Photon],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] counter: &mut [u32],
 ) {
-    photon::bounce(crate::item(id, groups), params, rays, hits, tris, materials, paths, photons, &mut Atomics(counter));
+    let tris = parts(split, tris, tris1, tris2);
+    photon::bounce(crate::item(id, groups), params, rays, hits, &tris, materials, paths, photons, &mut Atomics(counter));
 }
 
 #[spirv(compute(threads(64)))]
@@ -118,27 +122,37 @@ pub fn gather_kd(
 /// absorption per thread); `$a`, `$b` are the structure's two buffers (kd: `nodes`, `prims`;
 /// BVH: `bvh`, `bvh_tris`) and `$view` makes the structure's view of them.
 macro_rules! photon_paths {
-    ($name:ident, $m:ty, $a:ident: $at:ty, $b:ident: $bt:ty, $view:ident) => {
+    ($name:ident, $m:ty, $id:literal, $a:ident, $a1:ident, $a2:ident: $at:ty, $b:ident, $b1:ident, $b2:ident: $bt:ty, $view:ident) => {
         #[spirv(compute(threads(64)))]
         pub fn $name(
             #[spirv(global_invocation_id)] id: UVec3,
             #[spirv(num_workgroups)] groups: UVec3,
             #[spirv(push_constant)] params: &PhotonParams,
+            #[spirv(spec_constant(id = 0))] split_tris: u32,
+            #[spirv(spec_constant(id = $id))] split: [u32; 2],
             #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] lights: &[Light],
             #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] tris: &[Triangle],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] $a: &[$at],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] $b: &[$bt],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] materials: &[Material],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] photons: &mut [Photon],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] counter: &mut [u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] tris1: &[Triangle],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] tris2: &[Triangle],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] $a: &[$at],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] $a1: &[$at],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] $a2: &[$at],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] $b: &[$bt],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] $b1: &[$bt],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 9)] $b2: &[$bt],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 10)] materials: &[Material],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 11)] photons: &mut [Photon],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 12)] counter: &mut [u32],
         ) {
-            let accel = crate::$view(Aabb { min: params.bounds_min, max: params.bounds_max }, tris, $a, $b);
-            photon::trace_photon::<$m, _, _>(crate::item(id, groups), params, &accel, tris, lights, materials, photons, &mut Atomics(counter));
+            let tris = parts(split_tris, tris, tris1, tris2);
+            let (a, b) = (parts(split[0], $a, $a1, $a2), parts(split[1], $b, $b1, $b2));
+            let accel = crate::$view(Aabb { min: params.bounds_min, max: params.bounds_max }, tris, a, b);
+            photon::trace_photon::<$m, _, _>(crate::item(id, groups), params, &accel, &tris, lights, materials, photons, &mut Atomics(counter));
         }
     };
 }
 
-photon_paths!(photon_paths_brute, Brute, nodes: KdNode, prims: u32, kd_view);
-photon_paths!(photon_paths_stack, Kd<Full>, nodes: KdNode, prims: u32, kd_view);
-photon_paths!(photon_paths_shortstack3, Kd<Short<3>>, nodes: KdNode, prims: u32, kd_view);
-photon_paths!(photon_paths_bvh, Wide, bvh: BvhNode, bvh_tris: TriWords, bvh_view);
+photon_paths!(photon_paths_brute, Brute, 1, nodes, nodes1, nodes2: KdNode, prims, prims1, prims2: u32, kd_view);
+photon_paths!(photon_paths_stack, Kd<Full>, 1, nodes, nodes1, nodes2: KdNode, prims, prims1, prims2: u32, kd_view);
+photon_paths!(photon_paths_shortstack3, Kd<Short<3>>, 1, nodes, nodes1, nodes2: KdNode, prims, prims1, prims2: u32, kd_view);
+photon_paths!(photon_paths_bvh, Wide, 3, bvh, bvh1, bvh2: BvhNode, bvh_tris, bvh_tris1, bvh_tris2: TriWords, bvh_view);

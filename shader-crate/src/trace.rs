@@ -2,16 +2,27 @@
 //! traversal, four-ray packets, the decomposed pipeline's three steps, the wide BVH). All share
 //! the binding names `params`, `rays`, `tris`, `nodes`, `prims` and (but `traverse_leaves`)
 //! `out`; the decomposed pipeline adds `lists` and `status`; brute force does not use
-//! `nodes`/`prims`; the BVH binds `bvh` and `bvh_tris` instead of `tris`, `nodes`, `prims`. The parameters come in a small storage buffer, not as push constants: on
+//! `nodes`/`prims`; the BVH binds `bvh` and `bvh_tris` instead of `tris`, `nodes`, `prims`.
+//! The scene's arrays come in three parts each (`tris`, `tris1`, `tris2`, …: see the crate's
+//! docs). The parameters come in a small storage buffer, not as push constants: on
 //! the H100 the packet kernels' shadow rays ran 7–17 % slower with push constants (same
 //! SPIR-V otherwise), the other kernels the same.
 use kdray_shared::kdtree::{Full, KdNode, LeafRef, PushDown, Restart, Short};
-use kdray_shared::query::{AnyHit, Closest};
+use kdray_shared::query::{AnyHit, Closest, Prims};
 use kdray_shared::bvh::{Bvh, BvhNode, TriWords};
 use kdray_shared::trace::{self, Brute, Kd, Wide};
 use kdray_shared::{Hit, Ray, TraceParams, Triangle};
+use crate::parts;
 use spirv_std::glam::UVec3;
 use spirv_std::spirv;
+
+/// The kd-tree of a trace entry point's bindings: `split` holds the specialization constants of
+/// `tris`, `nodes`, `prims` (ids 0, 1, 2), each bound as three parts.
+macro_rules! kd_tree {
+    ($params:ident, $split:ident, $t0:ident, $t1:ident, $t2:ident, $n0:ident, $n1:ident, $n2:ident, $p0:ident, $p1:ident, $p2:ident) => {
+        trace::tree($params, parts($split[0], $t0, $t1, $t2), parts($split[1], $n0, $n1, $n2), parts($split[2], $p0, $p1, $p2))
+    };
+}
 
 /// One entry point running `trace::$f::<$t, $query>` (one ray, or one packet, per thread).
 macro_rules! trace_kernel {
@@ -20,14 +31,22 @@ macro_rules! trace_kernel {
         pub fn $name(
             #[spirv(global_invocation_id)] id: UVec3,
             #[spirv(num_workgroups)] groups: UVec3,
+            #[spirv(spec_constant(id = 0))] split: [u32; 3],
             #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &TraceParams,
             #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[Ray],
             #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] tris: &[Triangle],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] nodes: &[KdNode],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] prims: &[u32],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] out: &mut [$out],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] tris1: &[Triangle],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] tris2: &[Triangle],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] nodes: &[KdNode],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] nodes1: &[KdNode],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] nodes2: &[KdNode],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] prims: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 9)] prims1: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 10)] prims2: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 11)] out: &mut [$out],
         ) {
-            trace::$f::<$t, $query, _>(crate::item(id, groups), params, rays, &trace::tree(params, tris, nodes, prims), out);
+            let tree = kd_tree!(params, split, tris, tris1, tris2, nodes, nodes1, nodes2, prims, prims1, prims2);
+            trace::$f::<$t, $query, _>(crate::item(id, groups), params, rays, &tree, out);
         }
     };
 }
@@ -39,13 +58,19 @@ macro_rules! bvh_kernel {
         pub fn $name(
             #[spirv(global_invocation_id)] id: UVec3,
             #[spirv(num_workgroups)] groups: UVec3,
+            #[spirv(spec_constant(id = 3))] split: [u32; 2],
             #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &TraceParams,
             #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[Ray],
             #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] bvh: &[BvhNode],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] bvh_tris: &[TriWords],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] out: &mut [$out],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] bvh1: &[BvhNode],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] bvh2: &[BvhNode],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] bvh_tris: &[TriWords],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] bvh_tris1: &[TriWords],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] bvh_tris2: &[TriWords],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] out: &mut [$out],
         ) {
-            trace::trace::<Wide, $query, _>(crate::item(id, groups), params, rays, &Bvh { nodes: bvh, tris: bvh_tris }, out);
+            let bvh = Bvh { nodes: parts(split[0], bvh, bvh1, bvh2), tris: parts(split[1], bvh_tris, bvh_tris1, bvh_tris2) };
+            trace::trace::<Wide, $query, _>(crate::item(id, groups), params, rays, &bvh, out);
         }
     };
 }
@@ -86,15 +111,23 @@ trace_kernels!(closest_packet_shortstack3, any_packet_shortstack3, trace_packet,
 pub fn traverse_leaves(
     #[spirv(global_invocation_id)] id: UVec3,
     #[spirv(num_workgroups)] groups: UVec3,
+    #[spirv(spec_constant(id = 0))] split: [u32; 3],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &TraceParams,
     #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[Ray],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] tris: &[Triangle],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] nodes: &[KdNode],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] prims: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] lists: &mut [LeafRef],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] status: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] tris1: &[Triangle],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] tris2: &[Triangle],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] nodes: &[KdNode],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] nodes1: &[KdNode],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] nodes2: &[KdNode],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] prims: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 9)] prims1: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 10)] prims2: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 11)] lists: &mut [LeafRef],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 12)] status: &mut [u32],
 ) {
-    trace::traverse_leaves(crate::item(id, groups), params, rays, &trace::tree(params, tris, nodes, prims), lists, status);
+    let tree = kd_tree!(params, split, tris, tris1, tris2, nodes, nodes1, nodes2, prims, prims1, prims2);
+    trace::traverse_leaves(crate::item(id, groups), params, rays, &tree, lists, status);
 }
 
 /// Decomposed pipeline, steps 2 (`trace::intersect_listed`) and 3 (`trace::fallback`).
@@ -104,31 +137,46 @@ macro_rules! leaf_kernels {
         pub fn $intersect(
             #[spirv(global_invocation_id)] id: UVec3,
             #[spirv(num_workgroups)] groups: UVec3,
+            #[spirv(spec_constant(id = 0))] split_tris: u32,
+            #[spirv(spec_constant(id = 2))] split_prims: u32,
             #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &TraceParams,
             #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[Ray],
             #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] tris: &[Triangle],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] nodes: &[KdNode],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] prims: &[u32],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] lists: &[LeafRef],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] status: &mut [u32],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] out: &mut [$out],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] tris1: &[Triangle],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] tris2: &[Triangle],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] prims: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] prims1: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] prims2: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] lists: &[LeafRef],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 9)] status: &mut [u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 10)] out: &mut [$out],
         ) {
-            trace::intersect_listed::<$query, _, _>(crate::item(id, groups), params, rays, &trace::tree(params, tris, nodes, prims), lists, status, out);
+            // The leaves' primitives only: the nodes are not bound.
+            let g = Prims { index: parts(split_prims, prims, prims1, prims2), tris: parts(split_tris, tris, tris1, tris2) };
+            trace::intersect_listed::<$query, _, _>(crate::item(id, groups), params, rays, &g, lists, status, out);
         }
 
         #[spirv(compute(threads(64)))]
         pub fn $fallback(
             #[spirv(global_invocation_id)] id: UVec3,
             #[spirv(num_workgroups)] groups: UVec3,
+            #[spirv(spec_constant(id = 0))] split: [u32; 3],
             #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &TraceParams,
             #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[Ray],
             #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] tris: &[Triangle],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] nodes: &[KdNode],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] prims: &[u32],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] status: &[u32],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] out: &mut [$out],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] tris1: &[Triangle],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] tris2: &[Triangle],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] nodes: &[KdNode],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] nodes1: &[KdNode],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] nodes2: &[KdNode],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] prims: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 9)] prims1: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 10)] prims2: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 11)] status: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 12)] out: &mut [$out],
         ) {
-            trace::fallback::<$query, _>(crate::item(id, groups), params, rays, &trace::tree(params, tris, nodes, prims), status, out);
+            let tree = kd_tree!(params, split, tris, tris1, tris2, nodes, nodes1, nodes2, prims, prims1, prims2);
+            trace::fallback::<$query, _>(crate::item(id, groups), params, rays, &tree, status, out);
         }
     };
 }

@@ -3,6 +3,7 @@
 //! invocations past the batch write nothing, and that an entry point stores what the
 //! `kdray-shared` function it wraps computes.
 use kdray_shader::{item, WORKGROUP};
+use kdray_shared::parts::split_code;
 use kdray_shared::{brute, camera, Camera, Hit, PathState, Ray, RenderParams, TraceParams, Triangle, ORDER_TILES};
 use spirv_std::glam::UVec3;
 
@@ -68,15 +69,21 @@ fn closest_and_any_brute_entry_points_match_the_oracle() {
         })
         .collect();
     let params = TraceParams { count: rays.len() as u32, ..Default::default() };
-    let mut hits = vec![Hit::NONE; rays.len()];
-    let mut any = vec![7u32; rays.len()];
-    launch(rays.len().div_ceil(64) as u32, 1, |id, g| kdray_shader::closest_brute(id, g, &params, &rays, &tris, &[], &[], &mut hits));
-    launch(rays.len().div_ceil(64) as u32, 1, |id, g| kdray_shader::any_brute(id, g, &params, &rays, &tris, &[], &[], &mut any));
-    let mut hit_count = 0;
-    for (i, r) in rays.iter().enumerate() {
-        assert_eq!(hits[i], brute::closest_hit(r, &tris), "ray {i}");
-        assert_eq!(any[i], brute::any_hit(r, &tris) as u32, "ray {i}");
-        hit_count += hits[i].is_hit() as u32;
+    // The triangles whole (split code 0, one buffer bound thrice), and split into two parts of
+    // one triangle (shift 0, two parts: `kdray_shared::parts::split_code`).
+    let (t0, t1): (&[Triangle], &[Triangle]) = (&tris[..1], &tris[1..]);
+    for (split, parts) in [(0, [&tris[..], &tris[..], &tris[..]]), (split_code(0, 2), [t0, t1, &[]])] {
+        let mut hits = vec![Hit::NONE; rays.len()];
+        let mut any = vec![7u32; rays.len()];
+        let s = [split, 0, 0];
+        launch(rays.len().div_ceil(64) as u32, 1, |id, g| kdray_shader::closest_brute(id, g, s, &params, &rays, parts[0], parts[1], parts[2], &[], &[], &[], &[], &[], &[], &mut hits));
+        launch(rays.len().div_ceil(64) as u32, 1, |id, g| kdray_shader::any_brute(id, g, s, &params, &rays, parts[0], parts[1], parts[2], &[], &[], &[], &[], &[], &[], &mut any));
+        let mut hit_count = 0;
+        for (i, r) in rays.iter().enumerate() {
+            assert_eq!(hits[i], brute::closest_hit(r, &tris), "ray {i} (split {split})");
+            assert_eq!(any[i], brute::any_hit(r, &tris) as u32, "ray {i} (split {split})");
+            hit_count += hits[i].is_hit() as u32;
+        }
+        assert!(hit_count > 20 && hit_count < 200, "{hit_count} hits");
     }
-    assert!(hit_count > 20 && hit_count < 200, "{hit_count} hits");
 }

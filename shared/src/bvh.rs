@@ -35,7 +35,7 @@ use crate::query::Query;
 use crate::ray::Ray;
 use crate::stats::Stats;
 use crate::triangle::ShearedRay;
-use crate::kernel::at;
+use crate::parts::Parts;
 use crate::math::fma;
 use bytemuck::{Pod, Zeroable};
 use core::mem::MaybeUninit;
@@ -170,6 +170,10 @@ impl TriWords {
     pub fn cast(tris: &[Triangle]) -> &[TriWords] {
         bytemuck::cast_slice(tris)
     }
+    /// An array of triangles, whole or in parts, seen as words.
+    pub fn parts<'a>(tris: Parts<'a, Triangle>) -> Parts<'a, TriWords> {
+        tris.map(TriWords::cast)
+    }
 }
 
 /// The tree: `nodes[0]` is the root; `tris` are the scene's triangles in leaf order, each with
@@ -177,10 +181,10 @@ impl TriWords {
 #[derive(Copy, Clone)]
 pub struct Bvh<'a> {
     /// The nodes; `nodes[0]` is the root.
-    pub nodes: &'a [BvhNode],
+    pub nodes: Parts<'a, BvhNode>,
     /// The triangles in leaf order (as words: `TriWords::cast`); `_pad` holds each one's index
     /// in the scene.
-    pub tris: &'a [TriWords],
+    pub tris: Parts<'a, TriWords>,
 }
 
 /// Ray `ray`'s constants for the child box tests.
@@ -356,7 +360,7 @@ pub fn traverse<Q: Query, S: Stats>(bvh: &Bvh, ray: &Ray, q: &mut Q, stats: &mut
                 return;
             }
             // SAFETY: index < n_nodes, checked above.
-            let node = *unsafe { at(bvh.nodes, index as usize) };
+            let node = unsafe { bvh.nodes.get_unchecked(index as usize) };
             stats.node();
             let (t0, t1) = widened(ray.t_min, q.bound(), &node, inv_dmax);
             let hits = intersect_children(&node, &br, t0, t1);
@@ -373,7 +377,7 @@ pub fn traverse<Q: Query, S: Stats>(bvh: &Bvh, ray: &Ray, q: &mut Q, stats: &mut
                 return;
             }
             // SAFETY: k < n_tris, checked above.
-            let tri = unsafe { at(bvh.tris, k as usize) }.triangle();
+            let tri = unsafe { bvh.tris.get_unchecked(k as usize) }.triangle();
             q.test(tri._pad, &tri, &r, ray.t_min, stats);
             if !q.open() {
                 return;

@@ -25,6 +25,7 @@ pub mod camera;
 pub mod kdtree;
 pub mod kernel;
 pub mod math;
+pub mod parts;
 pub mod photon;
 pub mod pod;
 pub mod query;

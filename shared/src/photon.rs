@@ -30,6 +30,7 @@ use crate::kernel::{AtomicStore, Store};
 use crate::math::{
     add3, cosine_direction, cross3, direction_around, dot3, exp2i, floor_u32, fract_pos, mul3, normalize3, scale3, sub3,
 };
+use crate::parts::Parts;
 use crate::pod::{
     Hit, IndexParams, LeafCells, Light, Material, PathState, Photon, PhotonParams, PhotonPath, Triangle, FILTER_CONE,
     FILTER_EPANECHNIKOV, GATHER_EDGES, GATHER_SKIP_DIRECT, LIGHT_POINT, LIGHT_SPOT, MAT_MIRROR, PATH_GATHER, PHOTON_ACTIVE, PHOTON_SPECULAR_ONLY,
@@ -288,7 +289,7 @@ pub fn bounce_step<O, C>(
     photon: u32,
     ray: &mut Ray,
     hit: &Hit,
-    tris: &[Triangle],
+    tris: &Parts<Triangle>,
     materials: &[Material],
     path: &mut PhotonPath,
     photons: &mut O,
@@ -300,7 +301,7 @@ pub fn bounce_step<O, C>(
     let mut next = NO_RAY;
     let mut flags = 0;
     if hit.is_hit() {
-        let tri = &tris[hit.prim as usize];
+        let tri = &tris.get(hit.prim as usize);
         let mat = &materials[tri.material as usize];
         let (pt, n) = surface_point(tri, hit, ray);
         let smp = Sampler::photon(p, photon);
@@ -345,7 +346,7 @@ pub fn bounce<R, S, O, C>(
     p: &PhotonParams,
     rays: &mut R,
     hits: &[Hit],
-    tris: &[Triangle],
+    tris: &Parts<Triangle>,
     materials: &[Material],
     paths: &mut S,
     photons: &mut O,
@@ -380,7 +381,7 @@ pub fn trace_photon<M: Method, O: Store<Photon> + ?Sized, C: AtomicStore + ?Size
     i: u32,
     p: &PhotonParams,
     accel: &M::Accel<'_>,
-    tris: &[Triangle],
+    tris: &Parts<Triangle>,
     lights: &[Light],
     materials: &[Material],
     photons: &mut O,

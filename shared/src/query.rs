@@ -3,6 +3,7 @@
 //! `Visitor` is what a traversal calls; every `Query` (closest hit, any hit) is a visitor that
 //! tests the leaf's triangles one by one, and the decomposed pipeline's leaf recorder
 //! (`kdtree::leaf_list`) is a visitor that tests nothing.
+use crate::parts::Parts;
 use crate::pod::{Hit, Triangle};
 use crate::ray::Ray;
 use crate::stats::Stats;
@@ -13,9 +14,9 @@ use crate::triangle::{intersect_triangle, ShearedRay};
 #[derive(Copy, Clone)]
 pub struct Prims<'a> {
     /// The primitive index list.
-    pub index: &'a [u32],
+    pub index: Parts<'a, u32>,
     /// The triangles the indices name.
-    pub tris: &'a [Triangle],
+    pub tris: Parts<'a, Triangle>,
 }
 
 /// Called by the traversals for each leaf whose cell the ray's interval overlaps.
@@ -51,8 +52,8 @@ impl<Q: Query> Visitor for Q {
         let n = count as usize;
         let mut j = 0;
         while j < n && self.open() {
-            let p = g.index[off + j];
-            self.test(p, &g.tris[p as usize], r, t_min, stats);
+            let p = g.index.get(off + j);
+            self.test(p, &g.tris.get(p as usize), r, t_min, stats);
             j += 1;
         }
     }

@@ -7,6 +7,7 @@ use crate::query::{Answer, AnyHit, Closest, Query};
 use crate::trace::Method;
 use crate::kernel::Store;
 use crate::math::{cosine_direction, scale3};
+use crate::parts::Parts;
 use crate::pod::{
     Hit, ItemParams, Light, Material, PathState, RenderParams, ShadeTerms, Triangle, PATH_ACTIVE, PATH_DIFFUSE_SHIFT, PATH_GATHER,
     RENDER_CONTINUE, RENDER_JITTER,
@@ -83,7 +84,7 @@ pub fn path_step<R, P, SR, ST>(
     i: u32,
     p: &RenderParams,
     rays: &mut R,
-    tris: &[Triangle],
+    tris: &Parts<Triangle>,
     hits: &[Hit],
     materials: &[Material],
     lights: &[Light],
@@ -168,7 +169,7 @@ pub fn trace_path<M: Method, R, P, H>(
     i: u32,
     p: &RenderParams,
     accel: &M::Accel<'_>,
-    tris: &[Triangle],
+    tris: &Parts<Triangle>,
     materials: &[Material],
     lights: &[Light],
     rays: &mut R,

@@ -19,6 +19,7 @@
 //! Glass is colourless and the radiance scaling by η² at refraction is left out (it cancels
 //! for paths that enter and leave a closed object).
 use crate::math::{add3, cosine_direction, cross3, dot3, length3, mul3, normalize3, scale3, sqrt, sub3};
+use crate::parts::Parts;
 use crate::pod::{
     Hit, Light, Material, PathState, RenderParams, ShadeTerms, Triangle, LIGHT_POINT, LIGHT_SPOT, MAT_GLASS, MAT_MIRROR,
     PATH_ACTIVE, PATH_DIFFUSE_SHIFT, PATH_GATHER, PATH_SPECULAR, RENDER_CONTINUE, RENDER_GATHER, RENDER_PHOTON_DIRECT,
@@ -215,7 +216,7 @@ pub fn path_step(
     ray: &mut Ray,
     hit: &Hit,
     path: &mut PathState,
-    tris: &[Triangle],
+    tris: &Parts<Triangle>,
     materials: &[Material],
     lights: &[Light],
 ) -> (Ray, ShadeTerms) {
@@ -227,7 +228,7 @@ pub fn path_step(
         end(path, ray);
         return (NO_RAY, terms);
     }
-    let tri = &tris[hit.prim as usize];
+    let tri = &tris.get(hit.prim as usize);
     let mat = &materials[tri.material as usize];
     // Emitters emit from their front side only; a final-gather path (`RENDER_CONTINUE`) left
     // a diffuse point whose direct light and caustics are counted already.

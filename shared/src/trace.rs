@@ -8,8 +8,9 @@ use crate::brute::BruteForce;
 use crate::bvh::Bvh;
 use crate::kdtree::{intersect_leaves, record_leaves, Full, KdNode, KdTree, LeafRef, PacketTraversal, Traversal, PACKET};
 use crate::kernel::Store;
+use crate::parts::Parts;
 use crate::pod::{TraceParams, Triangle};
-use crate::query::{Answer, Query};
+use crate::query::{Answer, Prims, Query};
 use crate::ray::Ray;
 use crate::stats::NoStats;
 use core::marker::PhantomData;
@@ -29,7 +30,7 @@ impl Method for Brute {
     type Accel<'a> = KdTree<'a>;
     #[inline(always)]
     fn find<Q: Query + BruteForce>(tree: &KdTree, ray: &Ray, q: &mut Q) {
-        q.brute(ray, tree.tris)
+        q.brute(ray, &tree.tris)
     }
 }
 
@@ -56,7 +57,7 @@ impl Method for Wide {
 /// The scene as the kernels see it: the entry points build it from their bindings and the
 /// parameters' scene box, and pass it to the per-item functions below.
 #[inline(always)]
-pub fn tree<'a>(p: &TraceParams, tris: &'a [Triangle], nodes: &'a [KdNode], prims: &'a [u32]) -> KdTree<'a> {
+pub fn tree<'a>(p: &TraceParams, tris: Parts<'a, Triangle>, nodes: Parts<'a, KdNode>, prims: Parts<'a, u32>) -> KdTree<'a> {
     KdTree { nodes, prims, tris, bounds: Aabb { min: p.bounds_min, max: p.bounds_max } }
 }
 
@@ -145,7 +146,8 @@ pub fn traverse_leaves<L: Store<LeafRef> + ?Sized, St: Store<u32> + ?Sized>(
     }
 }
 
-/// Decomposed pipeline, step 2: `Q` over ray `i`'s listed leaves. Leaves `status[i]` = 1 where
+/// Decomposed pipeline, step 2: `Q` over ray `i`'s listed leaves (the tree's primitive index
+/// list and triangles `g`). Leaves `status[i]` = 1 where
 /// the list overflowed without settling the query (0 elsewhere) for `fallback`.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
@@ -153,7 +155,7 @@ pub fn intersect_listed<Q: Query + Answer, St: Store<u32> + ?Sized, O: Store<Q::
     i: u32,
     p: &TraceParams,
     rays: &[Ray],
-    t: &KdTree,
+    g: &Prims,
     lists: &[LeafRef],
     status: &mut St,
     out: &mut O,
@@ -162,7 +164,7 @@ pub fn intersect_listed<Q: Query + Answer, St: Store<u32> + ?Sized, O: Store<Q::
         let k = i as usize;
         let ray = &rays[k];
         let mut q = Q::new(ray);
-        let settled = intersect_leaves(t, ray, lists, k * p.leaf_capacity as usize, status.load(k), &mut q, &mut NoStats);
+        let settled = intersect_leaves(g, ray, lists, k * p.leaf_capacity as usize, status.load(k), &mut q, &mut NoStats);
         status.store(k, !settled as u32);
         out.store(k, q.answer());
     }

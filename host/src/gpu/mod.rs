@@ -6,7 +6,7 @@
 //! declaration and the shader is an error naming the kernel and the binding, never a wrong
 //! binding. Pipelines and bind groups are cached; read-backs go through reused staging buffers
 //! and are waited for apart from submission.
-use crate::runtime::module::{find_entry, module_info, short_name, spirv_words, validate, Slot};
+use crate::runtime::module::{find_entry, module_info, short_name, specialize, spirv_words, splits, validate, Slot, Splits};
 use crate::runtime::{reflect, Buffer, Commands, Kernel, Mem, Pending, PendingData, RawBuffer, Runtime};
 use crate::error::{bail, err, Result};
 use std::collections::HashMap;
@@ -24,6 +24,34 @@ const WARM_UP: Duration = Duration::from_millis(100);
 
 /// An idle GPU longer than this is warmed up for a second before the next measurement.
 const IDLE: Duration = Duration::from_millis(250);
+
+/// The kernels' module on `device`: `spirv` is the module's words (`spirv_words`), or those with
+/// other defaults for its specialization constants (`specialize`).
+fn shader_module(device: &wgpu::Device, spirv: Vec<u32>, label: &str) -> Result<wgpu::ShaderModule> {
+    let entry_points: Vec<wgpu::PassthroughShaderEntryPoint> = module_info()?
+        .entry_points
+        .iter()
+        .map(|e| wgpu::PassthroughShaderEntryPoint { name: e.name.clone().into(), workgroup_size: (e.workgroup_size[0], e.workgroup_size[1], e.workgroup_size[2]) })
+        .collect();
+    // SAFETY: the module is the rust-gpu output of shader-crate (built in, or the file
+    // `KDRAY_SPIRV` names for kernel development), validated by spirv-val at build time, with
+    // at most the default values of its specialization constants changed (the split codes the
+    // kernels are written for); its entry points are the ones it declares (reflected), and
+    // every pipeline layout is made from the bindings it declares.
+    Ok(unsafe {
+        device.create_shader_module_passthrough(wgpu::ShaderModuleDescriptorPassthrough {
+            label: Some(label),
+            entry_points: entry_points.into(),
+            spirv: Some(spirv.into()),
+            ..Default::default()
+        })
+    })
+}
+
+/// Environment variable: every GPU splits scene arrays larger than this many bytes across
+/// bindings (`Gpu::split_arrays_above`), as a device with that binding limit would. For
+/// measuring the split path (`kdray bench …` with it set).
+pub const MAX_BINDING_OVERRIDE: &str = "KDRAY_MAX_BINDING";
 
 /// Largest push-constant block a kernel family may use (Vulkan guarantees 128 bytes).
 const MAX_PARAMS: u32 = 128;
@@ -61,10 +89,16 @@ pub struct Gpu {
     /// Whether passes can carry timestamp queries (GPU-side kernel times).
     pub timestamps: bool,
     module: wgpu::ShaderModule,
-    /// Created on first use: drivers compile each entry point when its pipeline is made.
-    pipelines: Mutex<HashMap<String, Arc<Pipeline>>>,
-    /// Bind groups by entry point and buffer ids (dropped with their buffers).
+    /// The module specialized for scenes whose arrays are split across bindings, by split
+    /// (made on first use; `module` is the one for whole arrays).
+    split_modules: Mutex<HashMap<Splits, wgpu::ShaderModule>>,
+    /// Created on first use: drivers compile each entry point when its pipeline is made; by
+    /// entry point and the splits it is specialized for.
+    pipelines: Mutex<HashMap<(String, Splits), Arc<Pipeline>>>,
+    /// Bind groups by entry point, splits and buffer ids (dropped with their buffers).
     bind_groups: Mutex<HashMap<(String, Vec<u64>), wgpu::BindGroup>>,
+    /// A limit below `max_binding` for splitting scene arrays (`split_arrays_above`), 0 if none.
+    binding_cap: std::sync::atomic::AtomicU64,
     /// Ids of dropped buffers not yet purged from `bind_groups`.
     dead: Arc<Mutex<Vec<u64>>>,
     /// Staging buffers for read-backs, reused.
@@ -217,24 +251,10 @@ impl Gpu {
             let what = if m.is_empty() { format!("{reason:?}") } else { format!("{reason:?}: {m}") };
             f.lost.lock().expect("GPU faults").get_or_insert(what);
         });
-        let m = module_info()?;
-        let entry_points: Vec<wgpu::PassthroughShaderEntryPoint> = m
-            .entry_points
-            .iter()
-            .map(|e| wgpu::PassthroughShaderEntryPoint { name: e.name.clone().into(), workgroup_size: (e.workgroup_size[0], e.workgroup_size[1], e.workgroup_size[2]) })
-            .collect();
-        let spirv = spirv_words()?;
-        // SAFETY: the module is the rust-gpu output of shader-crate (built in, or the file
-        // `KDRAY_SPIRV` names for kernel development), validated by spirv-val at build time;
-        // its entry points are the ones it declares (reflected above), and every pipeline
-        // layout is made from the bindings it declares.
-        let module = unsafe {
-            device.create_shader_module_passthrough(wgpu::ShaderModuleDescriptorPassthrough {
-                label: Some("kdray-shader"),
-                entry_points: entry_points.into(),
-                spirv: Some(spirv.into()),
-                ..Default::default()
-            })
+        let module = shader_module(&device, spirv_words()?, "kdray-shader")?;
+        let cap = match std::env::var(MAX_BINDING_OVERRIDE) {
+            Err(_) => 0,
+            Ok(v) => v.trim().parse::<u64>().ok().filter(|&b| b >= 4).ok_or_else(|| err!(InvalidInput: "{MAX_BINDING_OVERRIDE}={v}: expected a number of bytes (at least 4)"))?,
         };
         Ok(Gpu {
             device,
@@ -245,7 +265,9 @@ impl Gpu {
             id: NEXT_GPU.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
             timestamps,
             module,
+            split_modules: Mutex::new(HashMap::new()),
             pipelines: Mutex::new(HashMap::new()),
+            binding_cap: std::sync::atomic::AtomicU64::new(cap),
             bind_groups: Mutex::new(HashMap::new()),
             dead: Arc::new(Mutex::new(Vec::new())),
             staging: Mutex::new(Vec::new()),
@@ -267,9 +289,24 @@ impl Gpu {
         Ok(())
     }
 
-    fn pipeline(&self, name: &str) -> Result<Arc<Pipeline>> {
+    /// The shader module specialized for `splits` (the built one when nothing is split).
+    fn module_for(&self, splits: &Splits) -> Result<wgpu::ShaderModule> {
+        if splits.iter().all(|&s| s == 0) {
+            return Ok(self.module.clone());
+        }
+        let mut cache = self.split_modules.lock().expect("module cache");
+        if let Some(m) = cache.get(splits) {
+            return Ok(m.clone());
+        }
+        let module = shader_module(&self.device, specialize(&spirv_words()?, splits), "kdray-shader (split scene arrays)")?;
+        cache.insert(*splits, module.clone());
+        Ok(module)
+    }
+
+    fn pipeline(&self, name: &str, splits: &Splits) -> Result<Arc<Pipeline>> {
         let mut cache = self.pipelines.lock().expect("pipeline cache");
-        if let Some(p) = cache.get(name) {
+        let key = (name.to_string(), *splits);
+        if let Some(p) = cache.get(&key) {
             return Ok(p.clone());
         }
         let m = module_info()?;
@@ -301,19 +338,19 @@ impl Gpu {
         let pipeline = self.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
             label: Some(name),
             layout: Some(&pl),
-            module: &self.module,
+            module: &self.module_for(splits)?,
             entry_point: Some(&info.name),
             compilation_options: Default::default(),
             cache: None,
         });
         let p = Arc::new(Pipeline { pipeline, layout, info });
-        cache.insert(name.to_string(), p.clone());
+        cache.insert(key, p.clone());
         Ok(p)
     }
 
     /// Creates the pipeline of entry point `name` now (the driver compiles it).
     pub fn compile(&self, name: &str) -> Result<()> {
-        self.pipeline(name).map(|_| ())
+        self.pipeline(name, &Splits::default()).map(|_| ())
     }
 
     /// This GPU's adapter in one line (`describe`).
@@ -324,6 +361,13 @@ impl Gpu {
     /// Largest buffer a kernel can bind, in bytes.
     pub fn max_binding(&self) -> u64 {
         self.limits.max_storage_buffer_binding_size.min(self.limits.max_buffer_size)
+    }
+
+    /// Splits scene arrays larger than `bytes` (when below `max_binding`) across bindings from
+    /// now on, as a device whose bindings hold at most `bytes` would; other buffers keep the
+    /// device's limit. For tests and measurements of that path; 0 lifts it.
+    pub fn split_arrays_above(&self, bytes: u64) {
+        self.binding_cap.store(bytes, std::sync::atomic::Ordering::Relaxed);
     }
 
     /// Fails with "scene too large for this device" when a buffer of `bytes` cannot be bound.
@@ -429,7 +473,7 @@ impl Gpu {
         timer: Option<(&wgpu::QuerySet, u32)>,
     ) -> Result<()> {
         let name = k.entry();
-        let p = self.pipeline(&name)?;
+        let p = self.pipeline(&name, &splits(&k.bindings()))?;
         let bg = self.bind_group(&p, k)?;
         let grid = match indirect {
             None => Some(self.grid(k.threads(), k.workgroup())?),
@@ -638,6 +682,14 @@ impl Runtime for Gpu {
 
     fn max_binding(&self) -> u64 {
         Gpu::max_binding(self)
+    }
+
+    fn split_shift(&self, label: &str, len: usize, elem: usize) -> Result<Option<u32>> {
+        let max = match self.binding_cap.load(std::sync::atomic::Ordering::Relaxed) {
+            0 => self.max_binding(),
+            cap => cap.min(self.max_binding()),
+        };
+        crate::runtime::split_at(label, len, elem, max, || (Runtime::name(self), false))
     }
 
     fn alloc_raw(&self, label: &str, bytes: u64) -> Result<RawBuffer> {

@@ -303,6 +303,11 @@ impl<'t> PhotonMap<'t> {
             IndexKind::Grid => None,
             IndexKind::Kd => {
                 let tree = tree.ok_or_else(|| err!(InvalidInput: "the kd photon index needs the scene's kd-tree (a kd traversal)"))?;
+                if let crate::tracer::AccelStructure::KdTree { nodes, .. } = &t.structure {
+                    if nodes.whole().is_none() {
+                        bail!(TooLarge: "the kd photon index needs the kd-tree's nodes in one storage buffer, and this scene's are split across {} (use the grid index)", nodes.parts().len());
+                    }
+                }
                 Some((leaf_boxes(&tree.nodes, tree.bounds.min, tree.bounds.max), rt.alloc("kd leaf cells", tree.nodes.len())?))
             }
         };
@@ -466,7 +471,10 @@ impl<'t> PhotonMap<'t> {
 
     fn index_binds(&self) -> IndexBinds<'_> {
         match (&self.kd, &self.t.structure) {
-            (Some((_, leaves)), crate::tracer::AccelStructure::KdTree { nodes, .. }) => IndexBinds::Kd { nodes, leaves },
+            (Some((_, leaves)), crate::tracer::AccelStructure::KdTree { nodes, .. }) => match nodes.whole() {
+                Some(nodes) => IndexBinds::Kd { nodes, leaves },
+                None => unreachable!("PhotonMap::new refuses the kd index over split nodes"),
+            },
             _ => IndexBinds::Grid,
         }
     }

@@ -18,6 +18,7 @@ use super::clip::{clipped_bounds, tri_bounds, Bounds};
 use crate::error::{bail, Result};
 use kdray_shared::aabb::Aabb;
 use kdray_shared::kdtree::{KdNode, KdTree, MAX_DEPTH};
+use kdray_shared::parts::Parts;
 use kdray_shared::Triangle;
 use std::time::Instant;
 
@@ -97,7 +98,7 @@ pub struct KdTreeData {
 impl KdTreeData {
     /// The tree as the traversals read it, over `tris`: the triangles it was built from.
     pub fn view<'a>(&'a self, tris: &'a [Triangle]) -> KdTree<'a> {
-        KdTree { nodes: &self.nodes, prims: &self.prims, tris, bounds: self.bounds }
+        KdTree { nodes: Parts::one(&self.nodes), prims: Parts::one(&self.prims), tris: Parts::one(tris), bounds: self.bounds }
     }
 }
 

@@ -7,13 +7,31 @@ use rayon::prelude::*;
 use std::cell::UnsafeCell;
 
 /// The native runtime over rayon's thread pool.
-#[derive(Default)]
-pub struct Cpu;
+pub struct Cpu {
+    /// Scene arrays larger than this are split across bindings (`with_split_limit`).
+    split_limit: u64,
+}
+
+impl Default for Cpu {
+    fn default() -> Self {
+        Cpu::new()
+    }
+}
+
+/// The kernels index with u32 elements of at most a few dozen bytes.
+const MAX_BINDING: u64 = 1 << 36;
 
 impl Cpu {
-    /// The native runtime (it has no state; `NATIVE` is the same value).
-    pub fn new() -> Cpu {
-        Cpu
+    /// The native runtime (`NATIVE` is the same value).
+    pub const fn new() -> Cpu {
+        Cpu { split_limit: MAX_BINDING }
+    }
+
+    /// The native runtime splitting scene arrays larger than `bytes` across bindings
+    /// (`Runtime::upload_split`), as a GPU whose bindings hold at most `bytes` would. For tests
+    /// of that path.
+    pub const fn with_split_limit(bytes: u64) -> Cpu {
+        Cpu { split_limit: if bytes < MAX_BINDING { bytes } else { MAX_BINDING } }
     }
 
     fn words(buf: &RawBuffer) -> Result<(*mut u8, usize)> {
@@ -82,8 +100,11 @@ impl Runtime for Cpu {
     }
 
     fn max_binding(&self) -> u64 {
-        // The kernels index with u32 elements of at most a few dozen bytes.
-        1 << 36
+        MAX_BINDING
+    }
+
+    fn split_shift(&self, label: &str, len: usize, elem: usize) -> Result<Option<u32>> {
+        super::split_at(label, len, elem, self.split_limit, || (self.name(), true))
     }
 
     fn alloc_raw(&self, label: &str, bytes: u64) -> Result<RawBuffer> {
@@ -175,4 +196,4 @@ impl Runtime for Cpu {
 }
 
 /// The native runtime (it has no state: one value serves every caller).
-pub static NATIVE: Cpu = Cpu;
+pub static NATIVE: Cpu = Cpu::new();

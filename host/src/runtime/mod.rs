@@ -14,6 +14,7 @@ pub mod reflect;
 
 use crate::error::{bail, Result};
 use bytemuck::Pod;
+use kdray_shared::parts::{split_code, Parts, MAX_PARTS};
 use std::borrow::Cow;
 use std::cell::UnsafeCell;
 use std::marker::PhantomData;
@@ -245,16 +246,89 @@ pub struct Bind<'a> {
     pub access: Access,
     /// Bytes per element on the host (`size_of::<T>()`).
     pub elem: u32,
+    /// For one part of an array split across bindings (`SplitBuffer`), how it is split
+    /// (`kdray_shared::parts::split_code`; the GPU runtime makes it the binding's specialization
+    /// constant); 0 for a buffer bound whole.
+    pub split: u32,
 }
 
 /// A buffer the kernel only reads.
 pub fn read<'a, T: Pod>(name: &'static str, b: &'a Buffer<T>) -> Bind<'a> {
-    Bind { name, buffer: b.raw(), access: Access::Read, elem: std::mem::size_of::<T>() as u32 }
+    Bind { name, buffer: b.raw(), access: Access::Read, elem: std::mem::size_of::<T>() as u32, split: 0 }
 }
 
 /// A buffer the kernel writes.
 pub fn write<'a, T: Pod>(name: &'static str, b: &'a Buffer<T>) -> Bind<'a> {
-    Bind { name, buffer: b.raw(), access: Access::Write, elem: std::mem::size_of::<T>() as u32 }
+    Bind { name, buffer: b.raw(), access: Access::Write, elem: std::mem::size_of::<T>() as u32, split: 0 }
+}
+
+/// An array the kernel reads in parts (`SplitBuffer`): bindings `name`, `name1`, `name2` (the
+/// one buffer thrice when it is whole). `name` is one of `kdray_shared::parts::SPLIT_BINDINGS`.
+pub fn read_split<'a, T: Pod>(name: &'static str, b: &'a SplitBuffer<T>) -> [Bind<'a>; MAX_PARTS] {
+    let names = part_names(name);
+    let part = |i: usize| Bind {
+        name: names[i],
+        buffer: b.parts[i.min(b.parts.len() - 1)].raw(),
+        access: Access::Read,
+        elem: std::mem::size_of::<T>() as u32,
+        split: b.split(),
+    };
+    [part(0), part(1), part(2)]
+}
+
+/// The binding names of an array's parts (`tris` → `tris`, `tris1`, `tris2`).
+pub fn part_names(name: &str) -> [&'static str; MAX_PARTS] {
+    match name {
+        "tris" => ["tris", "tris1", "tris2"],
+        "nodes" => ["nodes", "nodes1", "nodes2"],
+        "prims" => ["prims", "prims1", "prims2"],
+        "bvh" => ["bvh", "bvh1", "bvh2"],
+        "bvh_tris" => ["bvh_tris", "bvh_tris1", "bvh_tris2"],
+        _ => panic!("'{name}' is not one of the arrays kernels read in parts (kdray_shared::parts::SPLIT_BINDINGS)"),
+    }
+}
+
+/// A read-only array of the scene (triangles, a structure's nodes and indices) as one buffer,
+/// or, when larger than the runtime's `max_binding`, as up to `MAX_PARTS` buffers of 2^shift
+/// elements each, which kernels bind side by side (`kdray_shared::parts`).
+pub struct SplitBuffer<T> {
+    parts: Vec<Buffer<T>>,
+    shift: u32,
+    len: usize,
+}
+
+impl<T: Pod> SplitBuffer<T> {
+    /// Elements in all parts.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+    /// Whether there are no elements.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+    /// The buffers (one, unless the array is larger than one binding).
+    pub fn parts(&self) -> &[Buffer<T>] {
+        &self.parts
+    }
+    /// The buffer holding the whole array, if it is not split.
+    pub fn whole(&self) -> Option<&Buffer<T>> {
+        match self.parts.as_slice() {
+            [b] => Some(b),
+            _ => None,
+        }
+    }
+    /// How it is split (`kdray_shared::parts::split_code`: 0 when whole).
+    pub fn split(&self) -> u32 {
+        split_code(self.shift, self.parts.len() as u32)
+    }
+    /// The parts as a kernel's native twin reads them.
+    ///
+    /// # Safety
+    /// As `Buffer::host`, for every part.
+    pub unsafe fn host(&self) -> Parts<'_, T> {
+        let p = |i: usize| unsafe { self.parts[i.min(self.parts.len() - 1)].host() };
+        Parts::new(self.split(), p(0), p(1), p(2))
+    }
 }
 
 /// One pass: a kernel with its buffers and parameters, runnable on either runtime. Declared once
@@ -317,6 +391,15 @@ pub trait Runtime: Sync {
     fn is_software(&self) -> bool;
     /// Largest buffer a kernel can bind, in bytes.
     fn max_binding(&self) -> u64;
+    /// How a read-only scene array of `len` elements of `elem` bytes is split across bindings
+    /// (`Runtime::upload_split`): `None` for one buffer, else `Some(shift)`, parts of 2^shift
+    /// elements (at most `MAX_PARTS` of them). The default: one buffer when it fits in
+    /// `max_binding`, else parts of the largest power of two of elements that fits (and at
+    /// most 2^29, which keeps every index within 31 bits); more than `MAX_PARTS` parts is an
+    /// error naming `label`, the size and the limit.
+    fn split_shift(&self, label: &str, len: usize, elem: usize) -> Result<Option<u32>> {
+        split_at(label, len, elem, self.max_binding(), || (self.name(), self.is_native()))
+    }
     /// A zero-filled buffer of `bytes` bytes (never empty: at least 4).
     fn alloc_raw(&self, label: &str, bytes: u64) -> Result<RawBuffer>;
     /// Copies `data` into `buf` at byte 0. On a GPU the copy lands before every command of
@@ -367,6 +450,24 @@ impl dyn Runtime + '_ {
         Ok(b)
     }
 
+    /// A read-only scene array holding `data`, in one buffer or in parts as `split_shift`
+    /// says (the kernels that read it bind every part: `read_split`).
+    pub fn upload_split<T: Pod>(&self, label: &str, data: &[T]) -> Result<SplitBuffer<T>> {
+        let Some(shift) = self.split_shift(label, data.len(), std::mem::size_of::<T>())? else {
+            return Ok(SplitBuffer { parts: vec![self.upload(label, data)?], shift: 0, len: data.len() });
+        };
+        let n = data.len().div_ceil(1 << shift);
+        if !(1..=29).contains(&shift) || !(2..=MAX_PARTS).contains(&n) {
+            bail!(InvalidInput: "{label}: {} elements cannot be split into parts of 2^{shift} (2 to {MAX_PARTS} parts of 2 to 2^29 elements)", data.len());
+        }
+        let parts = data
+            .chunks(1 << shift)
+            .enumerate()
+            .map(|(i, c)| self.upload(&format!("{label} (part {} of {n})", i + 1), c))
+            .collect::<Result<Vec<_>>>()?;
+        Ok(SplitBuffer { parts, shift, len: data.len() })
+    }
+
     /// Copies `data` into the start of `buf`.
     pub fn write<T: Pod>(&self, buf: &Buffer<T>, data: &[T]) -> Result<()> {
         if data.len() > buf.len().max(1) {
@@ -412,6 +513,41 @@ impl dyn Runtime + '_ {
             );
         }
         Ok(())
+    }
+}
+
+/// The default split (`Runtime::split_shift`) of an array of `len` elements of `elem` bytes
+/// for bindings of at most `max` bytes; `device` names the runtime and says whether it is the
+/// native one, for the error.
+pub fn split_at(label: &str, len: usize, elem: usize, max: u64, device: impl Fn() -> (String, bool)) -> Result<Option<u32>> {
+    let size = elem.max(1) as u64;
+    let bytes = (len as u64).max(1) * size;
+    if bytes <= max {
+        return Ok(None);
+    }
+    let per = (max / size).max(1);
+    let shift = (63 - per.leading_zeros()).min(29);
+    if len.div_ceil(1 << shift) > MAX_PARTS {
+        let (name, native) = device();
+        bail!(TooLarge:
+            "scene too large for this {}: the {label} buffer needs {}, more than {MAX_PARTS} storage buffers of {} ({name} allows at most {} per storage buffer)",
+            if native { "machine" } else { "GPU" },
+            human_bytes(bytes),
+            human_bytes((1u64 << shift) * size),
+            human_bytes(max)
+        );
+    }
+    Ok(Some(shift))
+}
+
+/// `bytes` in GiB, MiB or KiB (one decimal), or in bytes below 1 KiB.
+pub fn human_bytes(bytes: u64) -> String {
+    let b = bytes as f64;
+    match bytes {
+        0..1024 => format!("{bytes} bytes"),
+        1024..1048576 => format!("{:.1} KiB", b / 1024.0),
+        1048576..1073741824 => format!("{:.1} MiB", b / 1048576.0),
+        _ => format!("{:.1} GiB", b / 1073741824.0),
     }
 }
 

@@ -5,6 +5,7 @@
 //! naming the kernel and the binding, never a wrong binding.
 use super::{reflect, Access, Bind, Kernel};
 use crate::error::{bail, err, Result};
+use kdray_shared::parts::SPLIT_BINDINGS;
 
 static SPIRV: &[u8] = include_bytes!("../../kernels/kdray.spv");
 
@@ -51,6 +52,56 @@ pub fn spirv_words() -> Result<Vec<u32>> {
         i += n;
     }
     Ok(out)
+}
+
+/// How the scene's splittable arrays are bound in a pass: one split code per entry of
+/// `kdray_shared::parts::SPLIT_BINDINGS` (0: bound whole), taken from the pass's bindings.
+pub type Splits = [u32; SPLIT_BINDINGS.len()];
+
+/// The splits of a pass's bindings (`Bind::split` of the arrays `SPLIT_BINDINGS` names).
+pub fn splits(host: &[Bind]) -> Splits {
+    let mut s = [0; SPLIT_BINDINGS.len()];
+    for (k, name) in SPLIT_BINDINGS.iter().enumerate() {
+        if let Some(b) = host.iter().find(|b| b.name == *name) {
+            s[k] = b.split;
+        }
+    }
+    s
+}
+
+/// `words` with every specialization constant whose `SpecId` is k (the ids of
+/// `SPLIT_BINDINGS`) defaulting to `splits[k]`: a driver given no specialization takes the
+/// defaults, so a pipeline made from these words is specialized (wgpu passes no
+/// specialization info for SPIR-V passthrough).
+pub fn specialize(words: &[u32], splits: &Splits) -> Vec<u32> {
+    const OP_DECORATE: u32 = 71;
+    const DECORATION_SPEC_ID: u32 = 1;
+    const OP_SPEC_CONSTANT: u32 = 50;
+    let mut ids = std::collections::HashMap::new();
+    let mut out = words.to_vec();
+    for pass in 0..2 {
+        let mut i = 5;
+        while i < out.len() {
+            let n = (out[i] >> 16) as usize;
+            if n == 0 || i + n > out.len() {
+                break;
+            }
+            let op = out[i] & 0xffff;
+            if pass == 0 && op == OP_DECORATE && n == 4 && out[i + 2] == DECORATION_SPEC_ID {
+                ids.insert(out[i + 1], out[i + 3]);
+            }
+            // OpSpecConstant: result type, result id, one literal word (32-bit types).
+            if pass == 1 && op == OP_SPEC_CONSTANT && n == 4 {
+                if let Some(&k) = ids.get(&out[i + 2]) {
+                    if let Some(&v) = splits.get(k as usize) {
+                        out[i + 3] = v;
+                    }
+                }
+            }
+            i += n;
+        }
+    }
+    out
 }
 
 /// The module's entry points as reflected (parsed once).
@@ -142,6 +193,12 @@ pub fn validate(k: &dyn Kernel, host: &[Bind], info: &reflect::EntryPoint) -> Re
             _ => {}
         }
         order.push(Slot::Host(i));
+    }
+    // An array bound in parts must be read by the entry point in parts: it declares every part
+    // (a kernel that takes the array whole would read only the first).
+    let declares = |n: &str| info.bindings.iter().any(|b| b.name.as_deref() == Some(n));
+    if let Some(h) = host.iter().find(|h| h.split != 0 && SPLIT_BINDINGS.contains(&h.name) && declares(h.name) && !declares(super::part_names(h.name)[1])) {
+        bail!(Gpu: "kernel {name}: '{}' is split across bindings (a scene larger than one storage buffer), but the kernel does not read it in parts", h.name);
     }
     // A host binding the entry point does not declare is one the shader does not use (rust-gpu
     // drops unused parameters, e.g. the kd-tree arrays of the brute-force kernels): allowed for

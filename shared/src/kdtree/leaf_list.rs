@@ -112,11 +112,12 @@ pub fn record_leaves<S: Stats>(tree: &KdTree, ray: &Ray, cap: u32, stats: &mut S
 }
 
 /// Tests the leaves listed for `ray` (status word `status`, entries from `list[base]`) in order
-/// for `q`. Returns whether `q` holds the final answer: `false` only for an overflowed list
+/// for `q`, over the tree's primitive index list and triangles `g` (`KdTree::prims`: the nodes
+/// are not needed). Returns whether `q` holds the final answer: `false` only for an overflowed list
 /// that did not settle the query.
 #[inline(always)]
 pub fn intersect_leaves<Q: Query, S: Stats>(
-    tree: &KdTree,
+    g: &Prims,
     ray: &Ray,
     list: &[LeafRef],
     base: usize,
@@ -128,13 +129,12 @@ pub fn intersect_leaves<Q: Query, S: Stats>(
         Some(r) => r,
         None => return true,
     };
-    let g = tree.prims();
     let len = (status & !LEAF_OVERFLOW) as usize;
     let mut k = 0;
     while k < len {
         let e = list[base + k];
         stats.leaf();
-        q.leaf(&g, e.node.prim_offset(), e.node.prim_count(), &r, ray.t_min, e.t_far, stats);
+        q.leaf(g, e.node.prim_offset(), e.node.prim_count(), &r, ray.t_min, e.t_far, stats);
         if q.done(exit_bound(e.t_far)) {
             return true;
         }

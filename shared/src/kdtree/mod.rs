@@ -46,6 +46,7 @@ pub use single::{any_hit, closest_hit, run, traverse, Algorithm, with_traversal,
 pub use stack::{Entry, ExitEntry, FullStack, NoStack, ShortStack, Stack, StackEntry, NO_NODE};
 
 use crate::aabb::Aabb;
+use crate::parts::Parts;
 use crate::pod::Triangle;
 use crate::query::Prims;
 use bytemuck::{Pod, Zeroable};
@@ -136,11 +137,11 @@ impl KdNode {
 #[derive(Copy, Clone)]
 pub struct KdTree<'a> {
     /// The nodes; `nodes[0]` is the root.
-    pub nodes: &'a [KdNode],
+    pub nodes: Parts<'a, KdNode>,
     /// The primitive index list: each leaf holds a range of it, each entry an index into `tris`.
-    pub prims: &'a [u32],
+    pub prims: Parts<'a, u32>,
     /// The triangles.
-    pub tris: &'a [Triangle],
+    pub tris: Parts<'a, Triangle>,
     /// The scene box: the root's cell.
     pub bounds: Aabb,
 }

@@ -175,7 +175,7 @@ pub fn traverse_packet<Q: Query, K: Stack<PacketEntry>, S: Stats, const PUSHDOWN
         if node_idx >= n_nodes {
             return true;
         }
-        let node = tree.nodes[node_idx as usize];
+        let node = tree.nodes.get(node_idx as usize);
         stats.node();
         if !node.is_leaf() {
             let k = node.axis();
@@ -242,8 +242,8 @@ pub fn traverse_packet<Q: Query, K: Stack<PacketEntry>, S: Stats, const PUSHDOWN
         let n = node.prim_count() as usize;
         let mut j = 0;
         while j < n {
-            let p = tree.prims[off + j];
-            let tri = &tree.tris[p as usize];
+            let p = tree.prims.get(off + j);
+            let tri = &tree.tris.get(p as usize);
             let mut open = false;
             let mut l = 0;
             while l < PACKET {

@@ -76,7 +76,7 @@ fn walk<Q: Visitor, E: StackEntry, K: StackKind<E>, S: Stats, const PUSHDOWN: bo
         if node_idx >= n_nodes {
             return true;
         }
-        let node = tree.nodes[node_idx as usize];
+        let node = tree.nodes.get(node_idx as usize);
         stats.node();
         if !node.is_leaf() {
             let k = node.axis();

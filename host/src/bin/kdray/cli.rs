@@ -560,6 +560,9 @@ pub fn run(cli: Cli) -> Result<()> {
                     t = t.with_bvh(b)?;
                 }
                 println!("device: {}, traversal {}", t.device_name(), accel.name());
+                if let Some(s) = t.split_summary() {
+                    println!("scene split across bindings: {s}");
+                }
                 let start = Instant::now();
                 let (r, interrupted) = match integrator {
                     IntegratorArg::Direct | IntegratorArg::Path => {

@@ -44,7 +44,7 @@ pub fn bounces(scene: &Scene, tree: &KdTreeData, size: u32, max_bounces: u32) ->
             let mut ray = *ray;
             let mut path = paths[k];
             let p = kdray_shared::RenderParams { seed: SEED, bounce, max_bounces, light_count: lights.len() as u32, ..Default::default() };
-            let (s, _) = shade::path_step(&p, bounce, &mut ray, hit, &mut path, &scene.triangles, &scene.materials, &lights);
+            let (s, _) = shade::path_step(&p, bounce, &mut ray, hit, &mut path, &kdray_shared::parts::Parts::one(&scene.triangles), &scene.materials, &lights);
             if bounce == 0 && s.is_valid() {
                 shadow.push(s);
                 shadow_pixels.push(path.pixel);
