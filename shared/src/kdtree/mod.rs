@@ -62,12 +62,67 @@ pub const PLANE_TOL: f32 = 1.0 / (1u32 << 21) as f32;
 /// rounding of the end itself and of the triangle test's t.
 pub const EXIT_TOL: f32 = 1.0 / (1u32 << 19) as f32;
 
+/// A ray parameter (`f32`), or one per lane of a packet (`Vec4`): the plane rules below are
+/// written once over it, for the single-ray and the packet traversals.
+pub trait Param: Copy + core::ops::Add<Output = Self> + core::ops::Sub<Output = Self> + core::ops::Mul<Output = Self> {
+    /// What a comparison gives: `bool`, or a lane mask.
+    type Mask;
+    /// `x` (in every lane).
+    fn splat(x: f32) -> Self;
+    /// |self|.
+    fn magnitude(self) -> Self;
+    /// self ≤ other.
+    fn at_most(self, other: Self) -> Self::Mask;
+}
+
+impl Param for f32 {
+    type Mask = bool;
+    #[inline(always)]
+    fn splat(x: f32) -> f32 {
+        x
+    }
+    #[inline(always)]
+    fn magnitude(self) -> f32 {
+        self.abs()
+    }
+    #[inline(always)]
+    fn at_most(self, other: f32) -> bool {
+        self <= other
+    }
+}
+
+impl Param for glam::Vec4 {
+    type Mask = glam::BVec4A;
+    #[inline(always)]
+    fn splat(x: f32) -> glam::Vec4 {
+        glam::Vec4::splat(x)
+    }
+    #[inline(always)]
+    fn magnitude(self) -> glam::Vec4 {
+        self.abs()
+    }
+    #[inline(always)]
+    fn at_most(self, other: glam::Vec4) -> glam::BVec4A {
+        self.cmple(other)
+    }
+}
+
 /// How far a split plane's computed ray parameter `ts` and an interval end computed the same
 /// way may lie apart and still come in either order along the ray: their roundings
-/// (`PLANE_TOL` each, of `ts`'s magnitude where they are that close).
+/// (`PLANE_TOL` each, of `ts`'s magnitude where they are that close). The full stack visits
+/// both children of a plane this near an end.
 #[inline(always)]
-pub fn plane_band(ts: f32) -> f32 {
-    2.0 * PLANE_TOL * ts.abs()
+pub fn plane_band<P: Param>(ts: P) -> P {
+    P::splat(2.0 * PLANE_TOL) * ts.magnitude()
+}
+
+/// Whether split plane `ts` lies within rounding of the interval end `t` (each rounded by
+/// `PLANE_TOL` of its own magnitude), so that the two may come in either order along the ray:
+/// the plane is ambiguous there, and a traversal that may drop stack entries hands the ray to
+/// the full stack.
+#[inline(always)]
+pub fn near_end<P: Param>(ts: P, t: P) -> P::Mask {
+    (ts - t).magnitude().at_most(P::splat(PLANE_TOL) * (ts.magnitude() + t.magnitude()))
 }
 
 /// What a hit must lie before (`Visitor::done`) to end the search after a leaf whose interval

@@ -18,11 +18,12 @@
 //! visited (push-down: from the deepest node entered since the last restart with no split).
 //! Each lane therefore visits the same leaves in the same order as it would alone and its
 //! result is identical to the single-ray result. A lane meeting an ambiguous plane
-//! (`kdtree::PLANE_TOL`) where the stack may drop entries ends the packet: the rays are
-//! traversed alone, which resolves it; the full-stack packet visits both children instead.
+//! (`kdtree::near_end`) where the stack may drop entries ends the packet: the rays are
+//! traversed alone, which resolves it; the full-stack packet visits both children instead
+//! (`kdtree::plane_band`).
 use super::single::{traverse, with_traversal, Algorithm, Full, PushDown, Restart, Short, Traversal, WithTraversal};
 use super::stack::{Entry, ExitEntry, NoStack, ShortStack, Stack, StackEntry, NO_NODE};
-use super::{exit_bound, KdTree, MAX_DEPTH, PLANE_TOL};
+use super::{exit_bound, near_end, plane_band, KdTree, MAX_DEPTH};
 use crate::query::Query;
 use crate::stats::Stats;
 use crate::aabb::{intersect_box, inv_dir};
@@ -99,8 +100,9 @@ pub fn direction_signs(rays: &[Ray; PACKET]) -> Option<u32> {
 
 /// Traverses the four rays together if they are coherent (see the module notes) and returns
 /// `true`; returns `false` otherwise — at once for an incoherent packet, or where a lane meets a
-/// split plane within rounding of an end of its interval (`ambiguous`), which the single-ray
-/// traversal resolves: the caller then traverses each ray alone (queries keep what they found).
+/// split plane within rounding of an end of its interval (`kdtree::near_end`), which the
+/// single-ray traversal resolves: the caller then traverses each ray alone (queries keep what
+/// they found).
 #[inline(always)]
 pub fn traverse_packet<Q: Query, K: Stack<PacketEntry>, S: Stats, const PUSHDOWN: bool>(
     tree: &KdTree,
@@ -182,22 +184,14 @@ pub fn traverse_packet<Q: Query, K: Stack<PacketEntry>, S: Stats, const PUSHDOWN
             let below = node.first_child();
             let (near, far) = if positive & (1 << k) != 0 { (below, below + 1) } else { (below + 1, below) };
             let ts = (Vec4::splat(node.split()) - pick(o, k)) * pick(inv, k);
-            let tol = Vec4::splat(PLANE_TOL);
             let (need_far, need_near);
             if !K::KEEPS_ALL {
                 // As `single::traverse` where entries may be dropped: a lane meeting a plane
                 // too near an end of its interval (but the one it restarts on) sends the rays
                 // alone; otherwise the exact decisions, per lane.
-                let close = (ts - t0).abs().cmple(tol * (ts.abs() + t0.abs())) | (ts - t1).abs().cmple(tol * (ts.abs() + t1.abs()));
-                let mut passing = 0u32;
-                let mut l = 0;
-                while l < PACKET {
-                    if passed[l] == node_idx {
-                        passing |= 1 << l;
-                    }
-                    l += 1;
-                }
-                if (mask & close & !lanes(passing)).any() {
+                let close = near_end(ts, t0) | near_end(ts, t1);
+                let passing = BVec4A::new(passed[0] == node_idx, passed[1] == node_idx, passed[2] == node_idx, passed[3] == node_idx);
+                if (mask & close & !passing).any() {
                     return false;
                 }
                 need_far = mask & ts.cmplt(t1);
@@ -205,7 +199,7 @@ pub fn traverse_packet<Q: Query, K: Stack<PacketEntry>, S: Stats, const PUSHDOWN
             } else {
                 // A full stack: the plane beyond the interval (near only), before it (far
                 // only), or crossing it or too near an end to tell (both).
-                let band = ts.abs() * Vec4::splat(2.0 * PLANE_TOL);
+                let band = plane_band(ts);
                 need_far = mask & !ts.cmpgt(t1 + band);
                 need_near = mask & !ts.cmplt(t0 - band);
             }
@@ -218,10 +212,10 @@ pub fn traverse_packet<Q: Query, K: Stack<PacketEntry>, S: Stats, const PUSHDOWN
                 stack.push(PacketEntry { node: far, mask: need_far.bitmask(), t0: cut.to_array(), t1: t1.to_array(), exit });
                 if !K::KEEPS_ALL {
                     // Lanes whose interval now ends at this plane.
-                    let ends = (need_near & need_far).bitmask();
+                    let ends = need_near & need_far;
                     let mut l = 0;
                     while l < PACKET {
-                        if ends & (1 << l) != 0 {
+                        if ends.test(l) {
                             exit[l] = node_idx;
                         }
                         l += 1;

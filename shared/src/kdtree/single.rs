@@ -2,7 +2,7 @@
 //! `ShortStack<N>`, `FullStack`) and `PUSHDOWN` select kd-restart, push-down, short-stack or the
 //! classic full stack (see the module table in `kdtree`).
 use super::stack::{Entry, ExitEntry, FullStack, NoStack, ShortStack, Stack as StackKind, StackEntry, NO_NODE};
-use super::{exit_bound, plane_band, KdTree, MAX_DEPTH, PLANE_TOL};
+use super::{exit_bound, near_end, plane_band, KdTree, MAX_DEPTH};
 use crate::query::{AnyHit, Closest, Query, Visitor};
 use crate::stats::Stats;
 use crate::aabb::{intersect_box, inv_dir};
@@ -90,14 +90,13 @@ fn walk<Q: Visitor, E: StackEntry, K: StackKind<E>, S: Stats, const PUSHDOWN: bo
                 node_idx = if ok <= p { below } else { above };
             } else {
                 let ts = (p - ok) * ik;
-                let band = if K::KEEPS_ALL { plane_band(ts) } else { PLANE_TOL * ts.abs() };
                 // The child the ray is in before the plane (a) and after it (b).
                 let (a, b) = if ik > 0.0 { (below, above) } else { (above, below) };
                 if !K::KEEPS_ALL {
                     // A plane too near an end of the interval to tell the order (but the one
                     // a restart starts on, which the ray is beyond: ts = t0 exactly there):
                     // the full stack's walk decides. Otherwise the exact decisions.
-                    if node_idx != passed && ((ts - t0).abs() <= band + PLANE_TOL * t0.abs() || (ts - t1).abs() <= band + PLANE_TOL * t1.abs()) {
+                    if node_idx != passed && (near_end(ts, t0) || near_end(ts, t1)) {
                         return false;
                     }
                     if ts >= t1 {
@@ -111,9 +110,9 @@ fn walk<Q: Visitor, E: StackEntry, K: StackKind<E>, S: Stats, const PUSHDOWN: bo
                         t1 = ts;
                         pushdown = false;
                     }
-                } else if ts > t1 + band {
+                } else if ts > t1 + plane_band(ts) {
                     node_idx = a;
-                } else if ts < t0 - band {
+                } else if ts < t0 - plane_band(ts) {
                     node_idx = b;
                 } else {
                     // The plane crosses the interval, or lies too near an end of it to tell:
