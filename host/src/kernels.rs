@@ -13,6 +13,7 @@ use kdray_shared::query::{AnyHit, Answer, Closest, Query};
 use kdray_shared::brute::BruteForce;
 use kdray_shared::aabb::Aabb;
 use kdray_shared::bvh::{Bvh, BvhNode, TriWords};
+use kdray_shared::parts;
 use kdray_shared::trace::{self, Brute, Kd, Method, Wide};
 use kdray_shared::photon::{self, HashGrid, KdCells, PhotonWord, SortedPhotons};
 use kdray_shared::{
@@ -75,10 +76,10 @@ impl<'a> SceneBinds<'a> {
     /// The triangles' and the structure's bindings, each array in its parts.
     fn binds(&self) -> Vec<Bind<'a>> {
         let (a, b) = match self.structure {
-            StructureBinds::Kd { nodes, prims } => (read_split("nodes", nodes), read_split("prims", prims)),
-            StructureBinds::Bvh { nodes, tris } => (read_split("bvh", nodes), read_split("bvh_tris", tris)),
+            StructureBinds::Kd { nodes, prims } => (read_split(parts::KD_NODES, nodes), read_split(parts::KD_PRIMS, prims)),
+            StructureBinds::Bvh { nodes, tris } => (read_split(parts::BVH_NODES, nodes), read_split(parts::BVH_TRIS, tris)),
         };
-        read_split("tris", self.tris).into_iter().chain(a).chain(b).collect()
+        read_split(parts::TRIS, self.tris).into_iter().chain(a).chain(b).collect()
     }
 }
 
@@ -461,7 +462,7 @@ impl Kernel for PathStep<'_> {
     }
     fn bindings(&self) -> Vec<Bind<'_>> {
         let mut b = vec![write("rays", self.rays)];
-        b.extend(read_split("tris", self.tris));
+        b.extend(read_split(parts::TRIS, self.tris));
         b.extend([
             read("hits", self.hits),
             read("materials", self.materials),
@@ -853,7 +854,7 @@ impl Kernel for PhotonBounce<'_> {
     }
     fn bindings(&self) -> Vec<Bind<'_>> {
         let mut b = vec![write("rays", self.rays), read("hits", self.hits)];
-        b.extend(read_split("tris", self.tris));
+        b.extend(read_split(parts::TRIS, self.tris));
         b.extend([read("materials", self.materials), write("paths", self.paths), write("photons", self.photons), write("counter", self.counter)]);
         b
     }

@@ -14,11 +14,27 @@
 /// Most parts an array is split into (each a binding of every kernel that reads the array).
 pub const MAX_PARTS: usize = 3;
 
-/// The bindings that may be split, by specialization-constant id (the index): the entry points
-/// declare `#[spirv(spec_constant(id = N))]` for the array named here, and bind its parts 2
-/// and 3 as the name followed by 1 and 2 (`tris1`, `tris2`). The host derives every constant from the
+/// The arrays that may be split, by specialization-constant id (the index), each with the
+/// binding names of its parts: the entry points declare `#[spirv(spec_constant(id = N))]` for
+/// array N and bind its parts under these names. The host derives every constant from the
 /// bindings of a pass.
-pub const SPLIT_BINDINGS: [&str; 5] = ["tris", "nodes", "prims", "bvh", "bvh_tris"];
+pub const SPLIT_BINDINGS: [[&str; MAX_PARTS]; 5] = [
+    ["tris", "tris1", "tris2"],
+    ["nodes", "nodes1", "nodes2"],
+    ["prims", "prims1", "prims2"],
+    ["bvh", "bvh1", "bvh2"],
+    ["bvh_tris", "bvh_tris1", "bvh_tris2"],
+];
+/// The scene's triangles (`SPLIT_BINDINGS[TRIS]`).
+pub const TRIS: usize = 0;
+/// The kd-tree's nodes.
+pub const KD_NODES: usize = 1;
+/// The kd-tree's primitive index list.
+pub const KD_PRIMS: usize = 2;
+/// The wide BVH's nodes.
+pub const BVH_NODES: usize = 3;
+/// The wide BVH's triangles in leaf order.
+pub const BVH_TRIS: usize = 4;
 
 /// A split code: 0 for one buffer, else `shift | (parts − 1) << 8` (2 ≤ parts ≤ `MAX_PARTS`,
 /// 1 ≤ shift ≤ 29).

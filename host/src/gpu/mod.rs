@@ -7,7 +7,7 @@
 //! binding. Pipelines and bind groups are cached; read-backs go through reused staging buffers
 //! and are waited for apart from submission.
 use crate::runtime::module::{find_entry, module_info, short_name, specialize, spirv_words, splits, validate, Slot, Splits};
-use crate::runtime::{reflect, Buffer, Commands, Kernel, Mem, Pending, PendingData, RawBuffer, Runtime};
+use crate::runtime::{reflect, Bind, Buffer, Commands, Kernel, Mem, Pending, PendingData, RawBuffer, Runtime};
 use crate::error::{bail, err, Result};
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
@@ -420,11 +420,10 @@ impl Gpu {
 
     /// The pass's bind group (cached by entry point and buffers), its buffers checked against
     /// the module.
-    fn bind_group(&self, p: &Pipeline, k: &dyn Kernel) -> Result<wgpu::BindGroup> {
-        let host = k.bindings();
-        let order = validate(k, &host, &p.info)?;
+    fn bind_group(&self, p: &Pipeline, k: &dyn Kernel, host: &[Bind]) -> Result<wgpu::BindGroup> {
+        let order = validate(k, host, &p.info)?;
         let name = k.entry();
-        for h in &host {
+        for h in host {
             if h.buffer.device() != Some(self.id) {
                 bail!(Gpu: "kernel {name}: buffer '{}' belongs to {}, not to this GPU", h.buffer.label(), if h.buffer.device().is_some() { "another GPU" } else { "the native runtime" });
             }
@@ -473,8 +472,9 @@ impl Gpu {
         timer: Option<(&wgpu::QuerySet, u32)>,
     ) -> Result<()> {
         let name = k.entry();
-        let p = self.pipeline(&name, &splits(&k.bindings()))?;
-        let bg = self.bind_group(&p, k)?;
+        let host = k.bindings();
+        let p = self.pipeline(&name, &splits(&host))?;
+        let bg = self.bind_group(&p, k, &host)?;
         let grid = match indirect {
             None => Some(self.grid(k.threads(), k.workgroup())?),
             Some(_) => None,

@@ -14,7 +14,7 @@ pub mod reflect;
 
 use crate::error::{bail, Result};
 use bytemuck::Pod;
-use kdray_shared::parts::{split_code, Parts, MAX_PARTS};
+use kdray_shared::parts::{split_code, Parts, MAX_PARTS, SPLIT_BINDINGS};
 use std::borrow::Cow;
 use std::cell::UnsafeCell;
 use std::marker::PhantomData;
@@ -262,30 +262,18 @@ pub fn write<'a, T: Pod>(name: &'static str, b: &'a Buffer<T>) -> Bind<'a> {
     Bind { name, buffer: b.raw(), access: Access::Write, elem: std::mem::size_of::<T>() as u32, split: 0 }
 }
 
-/// An array the kernel reads in parts (`SplitBuffer`): bindings `name`, `name1`, `name2` (the
-/// one buffer thrice when it is whole). `name` is one of `kdray_shared::parts::SPLIT_BINDINGS`.
-pub fn read_split<'a, T: Pod>(name: &'static str, b: &'a SplitBuffer<T>) -> [Bind<'a>; MAX_PARTS] {
-    let names = part_names(name);
+/// Array `array` of `kdray_shared::parts::SPLIT_BINDINGS` (`parts::TRIS`, …), which the kernel
+/// reads in parts (`SplitBuffer`): bound under its parts' names (the one buffer thrice when it
+/// is whole).
+pub fn read_split<T: Pod>(array: usize, b: &SplitBuffer<T>) -> [Bind<'_>; MAX_PARTS] {
     let part = |i: usize| Bind {
-        name: names[i],
+        name: SPLIT_BINDINGS[array][i],
         buffer: b.parts[i.min(b.parts.len() - 1)].raw(),
         access: Access::Read,
         elem: std::mem::size_of::<T>() as u32,
         split: b.split(),
     };
     [part(0), part(1), part(2)]
-}
-
-/// The binding names of an array's parts (`tris` → `tris`, `tris1`, `tris2`).
-pub fn part_names(name: &str) -> [&'static str; MAX_PARTS] {
-    match name {
-        "tris" => ["tris", "tris1", "tris2"],
-        "nodes" => ["nodes", "nodes1", "nodes2"],
-        "prims" => ["prims", "prims1", "prims2"],
-        "bvh" => ["bvh", "bvh1", "bvh2"],
-        "bvh_tris" => ["bvh_tris", "bvh_tris1", "bvh_tris2"],
-        _ => panic!("'{name}' is not one of the arrays kernels read in parts (kdray_shared::parts::SPLIT_BINDINGS)"),
-    }
 }
 
 /// A read-only array of the scene (triangles, a structure's nodes and indices) as one buffer,

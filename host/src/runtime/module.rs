@@ -61,8 +61,8 @@ pub type Splits = [u32; SPLIT_BINDINGS.len()];
 /// The splits of a pass's bindings (`Bind::split` of the arrays `SPLIT_BINDINGS` names).
 pub fn splits(host: &[Bind]) -> Splits {
     let mut s = [0; SPLIT_BINDINGS.len()];
-    for (k, name) in SPLIT_BINDINGS.iter().enumerate() {
-        if let Some(b) = host.iter().find(|b| b.name == *name) {
+    for (k, names) in SPLIT_BINDINGS.iter().enumerate() {
+        if let Some(b) = host.iter().find(|b| b.name == names[0]) {
             s[k] = b.split;
         }
     }
@@ -197,7 +197,7 @@ pub fn validate(k: &dyn Kernel, host: &[Bind], info: &reflect::EntryPoint) -> Re
     // An array bound in parts must be read by the entry point in parts: it declares every part
     // (a kernel that takes the array whole would read only the first).
     let declares = |n: &str| info.bindings.iter().any(|b| b.name.as_deref() == Some(n));
-    if let Some(h) = host.iter().find(|h| h.split != 0 && SPLIT_BINDINGS.contains(&h.name) && declares(h.name) && !declares(super::part_names(h.name)[1])) {
+    if let Some(h) = host.iter().find(|h| h.split != 0 && SPLIT_BINDINGS.iter().any(|p| p[0] == h.name && declares(p[0]) && !declares(p[1]))) {
         bail!(Gpu: "kernel {name}: '{}' is split across bindings (a scene larger than one storage buffer), but the kernel does not read it in parts", h.name);
     }
     // A host binding the entry point does not declare is one the shader does not use (rust-gpu
