@@ -3,7 +3,7 @@
 //! exceed that is uploaded in up to `MAX_PARTS` buffers of 2^shift elements each (the last
 //! shorter), bound side by side, and element `i` lies in part `i >> shift` at `i & (2^shift − 1)`.
 //! Three parts keep every kernel within 16 storage buffers (the whole-path kernels bind a
-//! kd-tree's three arrays and five more), which every desktop Vulkan driver offers.
+//! kd-tree's three arrays, in nine bindings, and six more buffers), which every desktop Vulkan driver offers.
 //!
 //! How an array is split reaches the kernels as a SPIR-V specialization constant (one per
 //! splittable binding, `SPLIT_BINDINGS`), whose default 0 means one buffer. The host sets it in
