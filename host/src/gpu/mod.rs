@@ -53,6 +53,29 @@ fn shader_module(device: &wgpu::Device, spirv: Vec<u32>, label: &str) -> Result<
 /// measuring the split path (`kdray bench …` with it set).
 pub const MAX_BINDING_OVERRIDE: &str = "KDRAY_MAX_BINDING";
 
+/// Environment variable: set (to anything but `0`), every pass recorded through
+/// `Runtime::dispatch` carries GPU timestamps, and when the `Gpu` is dropped a table of GPU
+/// time per entry point (dispatches, total and mean) goes to stderr. For finding where a
+/// schedule's time goes; the timestamps themselves cost a little per pass.
+pub const PROFILE_ENV: &str = "KDRAY_PROFILE";
+
+/// Passes timed per submission under `PROFILE_ENV` (wgpu's query sets hold 4 096 queries).
+const PROFILE_PASSES: u32 = 2048;
+
+/// The timestamps of one submission under `PROFILE_ENV`: a query set and the entry point of
+/// each timed pass.
+pub(crate) struct ProfileRecording {
+    set: wgpu::QuerySet,
+    names: Vec<String>,
+}
+
+/// GPU time per entry point under `PROFILE_ENV`: submissions not yet read, and the totals.
+#[derive(Default)]
+struct Profile {
+    pending: Vec<(wgpu::Buffer, Vec<String>)>,
+    totals: HashMap<String, (u64, f64)>,
+}
+
 /// Largest push-constant block a kernel family may use (Vulkan guarantees 128 bytes).
 const MAX_PARAMS: u32 = 128;
 
@@ -109,6 +132,8 @@ pub struct Gpu {
     last_timed: Mutex<Option<std::time::Instant>>,
     /// What the device reported outside calls that return errors.
     faults: Arc<Faults>,
+    /// GPU time per entry point, under `PROFILE_ENV` on an adapter with timestamps.
+    profile: Option<Mutex<Profile>>,
 }
 
 /// A lost device's reason, and the first error raised outside an error scope.
@@ -274,6 +299,7 @@ impl Gpu {
             params: Mutex::new(HashMap::new()),
             last_timed: Mutex::new(None),
             faults,
+            profile: (timestamps && std::env::var(PROFILE_ENV).is_ok_and(|v| v != "0")).then(|| Mutex::new(Profile::default())),
         })
     }
 
@@ -736,7 +762,11 @@ impl Runtime for Gpu {
     }
 
     fn begin(&self) -> Commands {
-        Commands { device: Some(self.id), encoder: Some(self.encoder()), readbacks: Vec::new() }
+        let profile = self.profile.as_ref().map(|_| ProfileRecording {
+            set: self.device.create_query_set(&wgpu::QuerySetDescriptor { label: Some("profile"), ty: wgpu::QueryType::Timestamp, count: 2 * PROFILE_PASSES }),
+            names: Vec::new(),
+        });
+        Commands { device: Some(self.id), encoder: Some(self.encoder()), readbacks: Vec::new(), profile }
     }
 
     fn clear(&self, c: &mut Commands, buf: &RawBuffer) -> Result<()> {
@@ -746,8 +776,9 @@ impl Runtime for Gpu {
     }
 
     fn dispatch(&self, c: &mut Commands, k: &dyn Kernel) -> Result<()> {
-        let enc = self.commands(c)?;
-        self.record(enc, k, None, None)
+        self.commands(c)?;
+        let enc = c.encoder.as_mut().expect("checked");
+        self.record(enc, k, None, profile_slot(&mut c.profile, k))
     }
 
     fn dispatch_indirect(&self, c: &mut Commands, k: &dyn Kernel, args: &Buffer<[u32; 3]>, index: usize) -> Result<()> {
@@ -755,8 +786,9 @@ impl Runtime for Gpu {
         if index >= args.len() {
             bail!(InvalidInput: "{}: indirect arguments {index} of {}", k.entry(), args.len());
         }
-        let enc = self.commands(c)?;
-        self.record(enc, k, Some((b, 12 * index as u64)), None)
+        self.commands(c)?;
+        let enc = c.encoder.as_mut().expect("checked");
+        self.record(enc, k, Some((b, 12 * index as u64)), profile_slot(&mut c.profile, k))
     }
 
     fn read_back(&self, c: &mut Commands, buf: &RawBuffer, bytes: u64) -> Result<Pending> {
@@ -773,9 +805,37 @@ impl Runtime for Gpu {
 
     fn submit(&self, mut c: Commands) -> Result<()> {
         self.commands(&mut c)?;
-        let enc = c.encoder.take().ok_or_else(|| err!(InvalidInput: "commands of another runtime"))?;
+        let mut enc = c.encoder.take().ok_or_else(|| err!(InvalidInput: "commands of another runtime"))?;
         self.fault()?;
+        let timed = c.profile.take().filter(|r| !r.names.is_empty()).map(|r| {
+            let bytes = 16 * r.names.len() as u64;
+            let resolve = self.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("profile timestamps"),
+                size: bytes,
+                usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            });
+            let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("profile read-back"),
+                size: bytes,
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            enc.resolve_query_set(&r.set, 0..2 * r.names.len() as u32, &resolve, 0);
+            enc.copy_buffer_to_buffer(&resolve, 0, &staging, 0, bytes);
+            (staging, r.names)
+        });
         let idx = self.queue.submit([enc.finish()]);
+        if let (Some(t), Some(p)) = (timed, &self.profile) {
+            let full = {
+                let mut p = p.lock().expect("profile");
+                p.pending.push(t);
+                p.pending.len() > 16
+            };
+            if full {
+                self.collect_profile();
+            }
+        }
         for r in &c.readbacks {
             *r.submission.lock().expect("read-back") = Some(idx.clone());
         }
@@ -799,7 +859,68 @@ impl Runtime for Gpu {
     }
 
     fn finish(&self) -> Result<()> {
-        self.poll(None)
+        self.poll(None)?;
+        self.collect_profile();
+        Ok(())
+    }
+}
+
+/// The timestamp slot of a pass of `k` under `PROFILE_ENV` (none past `PROFILE_PASSES`).
+fn profile_slot<'a>(r: &'a mut Option<ProfileRecording>, k: &dyn Kernel) -> Option<(&'a wgpu::QuerySet, u32)> {
+    let r = r.as_mut()?;
+    let i = r.names.len() as u32;
+    if i >= PROFILE_PASSES {
+        return None;
+    }
+    r.names.push(k.entry().into_owned());
+    Some((&r.set, i))
+}
+
+impl Gpu {
+    /// Reads the timestamps of profiled submissions (waiting for them) into the totals.
+    fn collect_profile(&self) {
+        let Some(p) = &self.profile else { return };
+        let pending = std::mem::take(&mut p.lock().expect("profile").pending);
+        let period = self.queue.get_timestamp_period() as f64 * 1e-6;
+        for (staging, names) in pending {
+            let slice = staging.slice(..);
+            slice.map_async(wgpu::MapMode::Read, |_| {});
+            if self.device.poll(wgpu::PollType::Wait { submission_index: None, timeout: Some(SUBMIT_TIMEOUT) }).is_err() {
+                return;
+            }
+            let Ok(view) = slice.get_mapped_range() else { return };
+            let ticks: Vec<u64> = bytemuck::pod_collect_to_vec(&view);
+            drop(view);
+            let mut p = p.lock().expect("profile");
+            for (i, n) in names.into_iter().enumerate() {
+                let e = p.totals.entry(n).or_default();
+                e.0 += 1;
+                e.1 += ticks[2 * i + 1].wrapping_sub(ticks[2 * i]) as f64 * period;
+            }
+        }
+    }
+
+    /// Under `PROFILE_ENV`: GPU time per entry point so far, most first (entry point,
+    /// dispatches, total ms).
+    pub fn profile(&self) -> Option<Vec<(String, u64, f64)>> {
+        self.profile.as_ref()?;
+        self.collect_profile();
+        let p = self.profile.as_ref()?.lock().expect("profile");
+        let mut rows: Vec<_> = p.totals.iter().map(|(k, &(n, ms))| (k.clone(), n, ms)).collect();
+        rows.sort_by(|a, b| b.2.total_cmp(&a.2));
+        Some(rows)
+    }
+}
+
+impl Drop for Gpu {
+    fn drop(&mut self) {
+        let Some(rows) = self.profile() else { return };
+        let total: f64 = rows.iter().map(|r| r.2).sum();
+        eprintln!("GPU time per entry point ({PROFILE_ENV}, {}; timestamps at every pass):", describe(&self.info));
+        eprintln!("{:<34} {:>10} {:>12} {:>10} {:>7}", "entry point", "dispatches", "total ms", "mean us", "share");
+        for (name, n, ms) in rows {
+            eprintln!("{name:<34} {n:>10} {ms:>12.3} {:>10.2} {:>6.1}%", ms * 1e3 / n as f64, 100.0 * ms / total.max(1e-12));
+        }
     }
 }
 

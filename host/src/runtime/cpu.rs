@@ -127,7 +127,7 @@ impl Runtime for Cpu {
     }
 
     fn begin(&self) -> Commands {
-        Commands { device: None, encoder: None, readbacks: Vec::new() }
+        Commands { device: None, encoder: None, readbacks: Vec::new(), profile: None }
     }
 
     fn clear(&self, _c: &mut Commands, buf: &RawBuffer) -> Result<()> {

@@ -353,6 +353,8 @@ pub struct Commands {
     pub(crate) device: Option<u64>,
     pub(crate) encoder: Option<wgpu::CommandEncoder>,
     pub(crate) readbacks: Vec<Arc<crate::gpu::Readback>>,
+    /// Timestamps of the passes under `gpu::PROFILE_ENV`.
+    pub(crate) profile: Option<crate::gpu::ProfileRecording>,
 }
 
 /// A read-back that was recorded; `Runtime::wait` returns its bytes once the work before it is
