@@ -365,13 +365,16 @@ fn every_adapter_renders_the_native_image() {
     assert!(e.contains("native runtime"), "{e}");
 }
 
-/// The counting sort (histogram with atomics, prefix sum, offsets, scatter with atomic cursors)
-/// on both runtimes: offsets equal to the histogram's prefix sum, every item in its cell exactly
-/// once, keys out of range left out; the same offsets on both.
+/// The counting sort (ranks from a histogram with atomics, offsets, scatter by rank) on both
+/// runtimes, exact offsets and by segments: exact offsets equal to the histogram's prefix sum;
+/// by segments, each segment's keys' offsets its prefix sum from a start of its own, segments
+/// that hold items not overlapping and covering every item; every item in its cell exactly
+/// once, keys out of range left out; the same exact offsets on both.
 #[test]
 fn counting_sort_on_both_runtimes() {
     use kdray::sort::counting_sort;
     use kdray::Runtime;
+    use kdray_shared::sort::segment_slot;
     let mut runtimes: Vec<&dyn Runtime> = vec![&NATIVE];
     if let Some(g) = common::gpu() {
         runtimes.push(g);
@@ -398,7 +401,7 @@ fn counting_sort_on_both_runtimes() {
         }
         let mut all = Vec::new();
         for rt in &runtimes {
-            let (offsets, order) = counting_sort(*rt, &keys, cells).unwrap();
+            let (offsets, order) = counting_sort(*rt, &keys, cells, None).unwrap();
             assert_eq!(offsets, want_offsets, "{}: {n} keys, {cells} cells: offsets", rt.name());
             assert_eq!(order.len(), *want_offsets.last().unwrap() as usize);
             for (c, items) in want.iter().enumerate() {
@@ -407,6 +410,36 @@ fn counting_sort_on_both_runtimes() {
                 assert_eq!(&got, items, "{}: cell {c}", rt.name());
             }
             all.push(offsets);
+            // By segments (of sizes that divide the cells).
+            for seg in [1u32, 8, 27, 32].into_iter().filter(|s| cells % s == 0) {
+                let what = format!("{}: {n} keys, {cells} cells, segments of {seg}", rt.name());
+                let (offsets, order) = counting_sort(*rt, &keys, cells, Some(seg)).unwrap();
+                assert_eq!(offsets.len() as u32, cells / seg * (seg + 1), "{what}: offsets");
+                assert_eq!(order.len(), *want_offsets.last().unwrap() as usize, "{what}: items placed");
+                let mut ranges = Vec::new();
+                for s in 0..cells / seg {
+                    let o = &offsets[(s * (seg + 1)) as usize..((s + 1) * (seg + 1)) as usize];
+                    for k in 0..seg {
+                        assert_eq!(o[k as usize + 1] - o[k as usize], want[(s * seg + k) as usize].len() as u32, "{what}: segment {s}, key {k}");
+                    }
+                    if o[seg as usize] > o[0] {
+                        ranges.push((o[0], o[seg as usize]));
+                    }
+                }
+                ranges.sort_unstable();
+                let mut end = 0;
+                for (a, b) in ranges {
+                    assert_eq!(a, end, "{what}: segments overlap or leave a gap");
+                    end = b;
+                }
+                assert_eq!(end as usize, order.len(), "{what}: segments cover the items");
+                for (c, items) in want.iter().enumerate() {
+                    let sl = segment_slot(c as u32, seg) as usize;
+                    let mut got = order[offsets[sl] as usize..offsets[sl + 1] as usize].to_vec();
+                    got.sort_unstable();
+                    assert_eq!(&got, items, "{what}: cell {c}");
+                }
+            }
         }
         assert!(all.windows(2).all(|w| w[0] == w[1]));
     }

@@ -14,7 +14,7 @@ use kdray::runtime::cpu::NATIVE;
 use kdray::scene::{self, CameraSpec, PointLight, Scene, Spot};
 use kdray::{Runtime, Tracer};
 use kdray_shared::kdtree::Algorithm;
-use kdray_shared::photon::{emission_numbers, emit_photon, irradiance, HashGrid, KdCells, PhotonIndex, PhotonWord, SortedPhotons};
+use kdray_shared::photon::{cell_range, emission_numbers, emit_photon, irradiance, HashGrid, KdCells, PhotonIndex, PhotonWord, SortedPhotons};
 use kdray_shared::{Material, Photon, PhotonParams, INDEX_KD, PHOTON_SOBOL};
 
 fn runtimes() -> Vec<&'static dyn Runtime> {
@@ -158,12 +158,16 @@ fn check_index(map: &PhotonMap, tree: &KdTreeData, records: &[Photon], what: &st
     } else {
         &|x, m| grid.cell(x, m)
     };
-    for c in 0..(offsets.len() - 1) {
-        for ph in &sorted[offsets[c] as usize..offsets[c + 1] as usize] {
+    let mut placed = 0;
+    for c in 0..p.cells * p.maps {
+        let (a, b) = cell_range(&p, &offsets, c);
+        placed += b - a;
+        for ph in &sorted[a as usize..b as usize] {
             let m = if p.maps > 1 && ph.is_caustic() { 1 } else { 0 };
-            assert_eq!(index(ph.position, m), c as u32, "{what}: a photon in the wrong cell");
+            assert_eq!(index(ph.position, m), c, "{what}: a photon in the wrong cell");
         }
     }
+    assert_eq!(placed as usize, sorted.len(), "{what}: the cells do not hold every placed photon once");
     // Gathers at photon positions (offset) against brute force.
     let gather = |x: [f32; 3], n: [f32; 3], m: u32| -> kdray_shared::photon::Estimate {
         if p.kind == INDEX_KD {

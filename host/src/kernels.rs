@@ -598,33 +598,41 @@ impl Kernel for RngFill<'_> {
     }
 }
 
-/// Counting sort, pass 1: the histogram of keys (`sort::count_keys`).
-pub struct CountKeys<'a> {
+/// Counting sort, pass 1: each item's rank among its key's, by the histogram of keys
+/// (`sort::count_rank`).
+pub struct CountRank<'a> {
     /// Items (`count`) and cells (`cells`).
     pub params: SortParams,
     /// Each item's key (cell).
     pub keys: &'a Buffer<u32>,
     /// Added to atomically: items per key (keys ≥ `params.cells` are left out).
     pub counts: &'a Buffer<u32>,
+    /// Added to atomically when keys come by segments (`params.segment` > 0): items per segment.
+    pub segments: &'a Buffer<u32>,
+    /// Written: each counted item's rank among its key's.
+    pub ranks: &'a Buffer<u32>,
 }
 
-impl Kernel for CountKeys<'_> {
+impl Kernel for CountRank<'_> {
     fn entry(&self) -> Cow<'static, str> {
-        "count_keys".into()
+        "count_rank".into()
     }
     fn params(&self) -> &[u8] {
         bytemuck::bytes_of(&self.params)
     }
     fn bindings(&self) -> Vec<Bind<'_>> {
-        vec![read("keys", self.keys), write("counts", self.counts)]
+        vec![read("keys", self.keys), write("counts", self.counts), write("segments", self.segments), write("ranks", self.ranks)]
     }
     fn threads(&self) -> u32 {
         self.params.count
     }
     fn run(&self, t: u32) {
         // SAFETY: called by the native runtime during the dispatch of this pass, which holds
-        // its bindings; items add to `counts` atomically only.
-        unsafe { sort::count_keys(t, &self.params, self.keys.host(), &mut self.counts.host_store()) }
+        // its bindings; items add to `counts` and `segments` atomically and write ranks[t] only.
+        unsafe {
+            let (mut counts, mut segments) = (self.counts.host_store(), self.segments.host_store());
+            sort::count_rank(t, &self.params, self.keys.host(), &mut counts, &mut segments, &mut self.ranks.host_store())
+        }
     }
 }
 
@@ -722,19 +730,16 @@ impl Kernel for ChunkSums<'_> {
     }
 }
 
-/// Counting sort, pass 4 at the bottom level: cell offsets and scatter cursors
-/// (`sort::exclusive`).
+/// Counting sort, exact offsets at the bottom level (`sort::exclusive`).
 pub struct ExclusiveOffsets<'a> {
     /// Cells (`cells`).
     pub params: SortParams,
-    /// Items per cell (`CountKeys`).
+    /// Items per cell (`CountRank`).
     pub counts: &'a Buffer<u32>,
     /// The exclusive prefix sums of the chunks of counts (`ExclusiveLevel` or `ScanTop`).
     pub above: &'a Buffer<u32>,
     /// Written: each cell's first slot (`cells + 1` entries; the last is every item counted).
     pub offsets: &'a Buffer<u32>,
-    /// Written: a copy of the offsets as scatter cursors (`cells` entries).
-    pub cursor: &'a Buffer<u32>,
 }
 
 impl Kernel for ExclusiveOffsets<'_> {
@@ -745,28 +750,64 @@ impl Kernel for ExclusiveOffsets<'_> {
         bytemuck::bytes_of(&self.params)
     }
     fn bindings(&self) -> Vec<Bind<'_>> {
-        vec![read("counts", self.counts), read("above", self.above), write("offsets", self.offsets), write("cursor", self.cursor)]
+        vec![read("counts", self.counts), read("above", self.above), write("offsets", self.offsets)]
     }
     fn threads(&self) -> u32 {
         self.params.cells + 1
     }
     fn run(&self, t: u32) {
         // SAFETY: called by the native runtime during the dispatch of this pass, which holds
-        // its bindings; item t writes offsets[t] and cursor[t] only.
-        unsafe {
-            sort::exclusive(t, &self.params, self.counts.host(), self.above.host(), &mut self.offsets.host_store(), &mut self.cursor.host_store())
-        }
+        // its bindings; item t writes offsets[t] only.
+        unsafe { sort::exclusive(t, &self.params, self.counts.host(), self.above.host(), &mut self.offsets.host_store()) }
     }
 }
 
-/// Counting sort, pass 5: every item to its slot (`sort::scatter`).
+/// Counting sort, offsets by segments of `params.segment` keys (`sort::segment_offsets`).
+pub struct SegmentOffsets<'a> {
+    /// Keys (`cells`, a multiple of `segment`) and keys per segment (`segment`).
+    pub params: SortParams,
+    /// Items per key (`CountRank`).
+    pub counts: &'a Buffer<u32>,
+    /// Items per segment (`CountRank`).
+    pub segments: &'a Buffer<u32>,
+    /// Added to atomically (cleared before): the items of the segments placed so far.
+    pub total: &'a Buffer<u32>,
+    /// Written: `segment + 1` offsets per segment that holds items (`sort::segment_slot`;
+    /// cleared before).
+    pub offsets: &'a Buffer<u32>,
+}
+
+impl Kernel for SegmentOffsets<'_> {
+    fn entry(&self) -> Cow<'static, str> {
+        "segment_offsets".into()
+    }
+    fn params(&self) -> &[u8] {
+        bytemuck::bytes_of(&self.params)
+    }
+    fn bindings(&self) -> Vec<Bind<'_>> {
+        vec![read("counts", self.counts), read("segments", self.segments), write("total", self.total), write("offsets", self.offsets)]
+    }
+    fn threads(&self) -> u32 {
+        self.params.cells / self.params.segment.max(1)
+    }
+    fn run(&self, t: u32) {
+        // SAFETY: called by the native runtime during the dispatch of this pass, which holds
+        // its bindings; item t writes its segment's offsets only and adds to `total` atomically.
+        unsafe { sort::segment_offsets(t, &self.params, self.counts.host(), self.segments.host(), &mut self.total.host_store(), &mut self.offsets.host_store()) }
+    }
+}
+
+/// Counting sort, last pass: every item to its slot, its key's offset plus its rank
+/// (`sort::scatter`).
 pub struct ScatterKeys<'a> {
-    /// Items (`count`) and cells (`cells`).
+    /// Items (`count`), cells (`cells`) and keys per segment (`segment`, 0 for exact offsets).
     pub params: SortParams,
     /// Each item's key (cell).
     pub keys: &'a Buffer<u32>,
-    /// Read and written atomically: each cell's next free slot (`ExclusiveOffsets`).
-    pub cursor: &'a Buffer<u32>,
+    /// Each counted item's rank among its key's (`CountRank`).
+    pub ranks: &'a Buffer<u32>,
+    /// The keys' offsets (`ExclusiveOffsets` or `SegmentOffsets`).
+    pub offsets: &'a Buffer<u32>,
     /// Written: the item indices in key order.
     pub order: &'a Buffer<u32>,
 }
@@ -779,15 +820,15 @@ impl Kernel for ScatterKeys<'_> {
         bytemuck::bytes_of(&self.params)
     }
     fn bindings(&self) -> Vec<Bind<'_>> {
-        vec![read("keys", self.keys), write("cursor", self.cursor), write("order", self.order)]
+        vec![read("keys", self.keys), read("ranks", self.ranks), read("offsets", self.offsets), write("order", self.order)]
     }
     fn threads(&self) -> u32 {
         self.params.count
     }
     fn run(&self, t: u32) {
         // SAFETY: called by the native runtime during the dispatch of this pass, which holds
-        // its bindings; cursors are taken atomically, so every item writes its own slot.
-        unsafe { sort::scatter(t, &self.params, self.keys.host(), &mut self.cursor.host_store(), &mut self.order.host_store()) }
+        // its bindings; ranks make every item's slot its own.
+        unsafe { sort::scatter(t, &self.params, self.keys.host(), self.ranks.host(), self.offsets.host(), &mut self.order.host_store()) }
     }
 }
 
@@ -911,7 +952,7 @@ impl<'a> IndexBinds<'a> {
     }
 }
 
-/// The cell of every stored photon (`photon::keys`).
+/// The cell of every stored photon and its rank in the cell (`photon::keys`).
 pub struct PhotonKeys<'a> {
     /// Photon slots (`count`), cells per map, maps, gather radii and scene box.
     pub params: IndexParams,
@@ -924,6 +965,12 @@ pub struct PhotonKeys<'a> {
     pub counter: &'a Buffer<u32>,
     /// Written: each slot's cell (`NO_CELL` for empty slots).
     pub keys: &'a Buffer<u32>,
+    /// Added to atomically: photons per cell (cleared before).
+    pub counts: &'a Buffer<u32>,
+    /// Added to atomically for the hashed grid: photons per block of cells (cleared before).
+    pub segments: &'a Buffer<u32>,
+    /// Written: each placed photon's rank among its cell's.
+    pub ranks: &'a Buffer<u32>,
 }
 
 impl Kernel for PhotonKeys<'_> {
@@ -936,7 +983,7 @@ impl Kernel for PhotonKeys<'_> {
     fn bindings(&self) -> Vec<Bind<'_>> {
         let mut b = vec![read("photons", self.photons), read("counter", self.counter)];
         b.extend(self.index.binds());
-        b.push(write("keys", self.keys));
+        b.extend([write("keys", self.keys), write("counts", self.counts), write("segments", self.segments), write("ranks", self.ranks)]);
         b
     }
     fn threads(&self) -> u32 {
@@ -944,29 +991,35 @@ impl Kernel for PhotonKeys<'_> {
     }
     fn run(&self, t: u32) {
         // SAFETY: called by the native runtime during the dispatch of this pass, which holds
-        // its bindings; item t writes keys[t] only.
+        // its bindings; item t writes keys[t] and ranks[t] only, and adds to the counts
+        // atomically.
         unsafe {
             let (photons, counter, mut keys) = (self.photons.host(), self.counter.host(), self.keys.host_store());
+            let (mut counts, mut segments, mut ranks) = (self.counts.host_store(), self.segments.host_store(), self.ranks.host_store());
             match self.index {
-                IndexBinds::Grid => photon::keys(t, &self.params, &HashGrid::new(&self.params), photons, counter, &mut keys),
+                IndexBinds::Grid => {
+                    photon::keys(t, &self.params, &HashGrid::new(&self.params), photons, counter, &mut keys, &mut counts, &mut segments, &mut ranks)
+                }
                 IndexBinds::Kd { nodes, leaves } => {
                     let index = KdCells { nodes: nodes.host(), leaves: leaves.host(), cells: self.params.cells };
-                    photon::keys(t, &self.params, &index, photons, counter, &mut keys)
+                    photon::keys(t, &self.params, &index, photons, counter, &mut keys, &mut counts, &mut segments, &mut ranks)
                 }
             }
         }
     }
 }
 
-/// The stored photons in cell order (`photon::permute`).
-pub struct PermutePhotons<'a> {
-    /// Photon slots (`count`), cells per map and maps.
+/// The stored photons in cell order (`photon::place`): each at its cell's offset plus its rank.
+pub struct PlacePhotons<'a> {
+    /// Photon slots (`count`), the index's kind, cells per map and maps.
     pub params: IndexParams,
     /// The stored photon records.
     pub photons: &'a Buffer<Photon>,
-    /// Record indices in cell order (`ScatterKeys`).
-    pub order: &'a Buffer<u32>,
-    /// Cell offsets into `order`; `offsets[cells · maps]` photons were placed.
+    /// Each slot's cell (`PhotonKeys`).
+    pub keys: &'a Buffer<u32>,
+    /// Each placed photon's rank among its cell's (`PhotonKeys`).
+    pub ranks: &'a Buffer<u32>,
+    /// The cells' offsets (`photon::offset_slot`).
     pub offsets: &'a Buffer<u32>,
     /// Written: the placed records' positions and packed words in cell order.
     pub words: &'a Buffer<PhotonWord>,
@@ -974,25 +1027,32 @@ pub struct PermutePhotons<'a> {
     pub powers: &'a Buffer<u32>,
 }
 
-impl Kernel for PermutePhotons<'_> {
+impl Kernel for PlacePhotons<'_> {
     fn entry(&self) -> Cow<'static, str> {
-        "permute_photons".into()
+        "place_photons".into()
     }
     fn params(&self) -> &[u8] {
         bytemuck::bytes_of(&self.params)
     }
     fn bindings(&self) -> Vec<Bind<'_>> {
-        vec![read("photons", self.photons), read("order", self.order), read("offsets", self.offsets), write("words", self.words), write("powers", self.powers)]
+        vec![
+            read("photons", self.photons),
+            read("keys", self.keys),
+            read("ranks", self.ranks),
+            read("offsets", self.offsets),
+            write("words", self.words),
+            write("powers", self.powers),
+        ]
     }
     fn threads(&self) -> u32 {
         self.params.count
     }
     fn run(&self, t: u32) {
         // SAFETY: called by the native runtime during the dispatch of this pass, which holds
-        // its bindings; item t writes words[t] and powers[t] only.
+        // its bindings; ranks make every placed photon's slot its own.
         unsafe {
             let (mut words, mut powers) = (self.words.host_store(), self.powers.host_store());
-            photon::permute(t, &self.params, self.photons.host(), self.order.host(), self.offsets.host(), &mut words, &mut powers)
+            photon::place(t, &self.params, self.photons.host(), self.keys.host(), self.ranks.host(), self.offsets.host(), &mut words, &mut powers)
         }
     }
 }
@@ -1006,7 +1066,7 @@ pub struct Gather<'a> {
     pub index: IndexBinds<'a>,
     /// Each path's ray slot; at a gather point, the point (origin) and its normal (direction).
     pub rays: &'a Buffer<Ray>,
-    /// The photons' positions and packed words in cell order (`PermutePhotons`).
+    /// The photons' positions and packed words in cell order (`PlacePhotons`).
     pub words: &'a Buffer<PhotonWord>,
     /// Their powers, in the same order.
     pub powers: &'a Buffer<u32>,

@@ -1,6 +1,6 @@
 //! Photon mapping's entry points (`kdray_shared::photon`): emission, one bounce, whole photon
 //! paths (emission to absorption in one thread, for brute force, two kd traversals and the BVH), the
-//! index's keys and permutation, and the gather, for both photon indices (hashed grid, kd
+//! index's keys and placement, and the gather, for both photon indices (hashed grid, kd
 //! leaves).
 use crate::{parts, Atomics};
 use kdray_shared::aabb::Aabb;
@@ -52,8 +52,12 @@ pub fn photon_keys_grid(
     #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] photons: &[Photon],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] counter: &[u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] keys: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] counts: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] segments: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] ranks: &mut [u32],
 ) {
-    photon::keys(crate::item(id, groups), params, &HashGrid::new(params), photons, counter, keys);
+    let grid = HashGrid::new(params);
+    photon::keys(crate::item(id, groups), params, &grid, photons, counter, keys, &mut Atomics(counts), &mut Atomics(segments), ranks);
 }
 
 #[spirv(compute(threads(64)))]
@@ -66,23 +70,27 @@ pub fn photon_keys_kd(
     #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] nodes: &[KdNode],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] leaves: &[LeafCells],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] keys: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] counts: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] segments: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] ranks: &mut [u32],
 ) {
     let index = KdCells { nodes, leaves, cells: params.cells };
-    photon::keys(crate::item(id, groups), params, &index, photons, counter, keys);
+    photon::keys(crate::item(id, groups), params, &index, photons, counter, keys, &mut Atomics(counts), &mut Atomics(segments), ranks);
 }
 
 #[spirv(compute(threads(64)))]
-pub fn permute_photons(
+pub fn place_photons(
     #[spirv(global_invocation_id)] id: UVec3,
     #[spirv(num_workgroups)] groups: UVec3,
     #[spirv(push_constant)] params: &IndexParams,
     #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] photons: &[Photon],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] order: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] offsets: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] words: &mut [PhotonWord],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] powers: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] keys: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] ranks: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] offsets: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] words: &mut [PhotonWord],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] powers: &mut [u32],
 ) {
-    photon::permute(crate::item(id, groups), params, photons, order, offsets, words, powers);
+    photon::place(crate::item(id, groups), params, photons, keys, ranks, offsets, words, powers);
 }
 
 #[spirv(compute(threads(64)))]

@@ -6,14 +6,16 @@ use spirv_std::glam::UVec3;
 use spirv_std::spirv;
 
 #[spirv(compute(threads(64)))]
-pub fn count_keys(
+pub fn count_rank(
     #[spirv(global_invocation_id)] id: UVec3,
     #[spirv(num_workgroups)] groups: UVec3,
     #[spirv(push_constant)] params: &SortParams,
     #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] keys: &[u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] counts: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] segments: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] ranks: &mut [u32],
 ) {
-    sort::count_keys(crate::item(id, groups), params, keys, &mut Atomics(counts));
+    sort::count_rank(crate::item(id, groups), params, keys, &mut Atomics(counts), &mut Atomics(segments), ranks);
 }
 
 #[spirv(compute(threads(64)))]
@@ -58,9 +60,21 @@ pub fn exclusive_offsets(
     #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] counts: &[u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] above: &[u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] offsets: &mut [u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] cursor: &mut [u32],
 ) {
-    sort::exclusive(crate::item(id, groups), params, counts, above, offsets, cursor);
+    sort::exclusive(crate::item(id, groups), params, counts, above, offsets);
+}
+
+#[spirv(compute(threads(64)))]
+pub fn segment_offsets(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(num_workgroups)] groups: UVec3,
+    #[spirv(push_constant)] params: &SortParams,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] counts: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] segments: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] total: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] offsets: &mut [u32],
+) {
+    sort::segment_offsets(crate::item(id, groups), params, counts, segments, &mut Atomics(total), offsets);
 }
 
 #[spirv(compute(threads(64)))]
@@ -69,8 +83,9 @@ pub fn scatter_keys(
     #[spirv(num_workgroups)] groups: UVec3,
     #[spirv(push_constant)] params: &SortParams,
     #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] keys: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] cursor: &mut [u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] order: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] ranks: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] offsets: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] order: &mut [u32],
 ) {
-    sort::scatter(crate::item(id, groups), params, keys, &mut Atomics(cursor), order);
+    sort::scatter(crate::item(id, groups), params, keys, ranks, offsets, order);
 }

@@ -11,8 +11,8 @@
 //!    albedo; mirrors reflect, glass reflects or refracts (Fresnel). Photons that reached a
 //!    diffuse surface through specular bounces only are caustic photons.
 //! 3. the index: `keys` gives every stored photon its cell (a `PhotonIndex`: hashed grid, or the
-//!    geometry kd-tree's leaves subdivided), the counting sort (`sort`) orders them by cell and
-//!    `permute` writes the records in that order.
+//!    geometry kd-tree's leaves subdivided) and its rank in the cell, a counting sort (`sort`)
+//!    gives the cells' offsets and `place` writes the records in cell order.
 //! 4. `gather`: at each eye path's gather point, the photons within radius r whose surface
 //!    normal lies on the same side, weighted by a kernel, divided by πr²; added to the path's
 //!    radiance, which the film (`render::film`) then adds up.
@@ -32,7 +32,7 @@ use crate::math::{
 };
 use crate::parts::Parts;
 use crate::pod::{
-    Hit, IndexParams, LeafCells, Light, Material, PathState, Photon, PhotonParams, PhotonPath, Triangle, FILTER_CONE,
+    Hit, IndexParams, LeafCells, Light, Material, PathState, Photon, PhotonParams, PhotonPath, SortParams, Triangle, FILTER_CONE, INDEX_KD,
     FILTER_EPANECHNIKOV, GATHER_EDGES, GATHER_SKIP_DIRECT, LIGHT_POINT, LIGHT_SPOT, MAT_MIRROR, PATH_GATHER, PHOTON_ACTIVE, PHOTON_SPECULAR_ONLY,
     PHOTON_STORE_DIRECT,
 };
@@ -406,20 +406,36 @@ pub fn trace_photon<M: Method, O: Store<Photon> + ?Sized, C: AtomicStore + ?Size
 // ---------------------------------------------------------------------------------------------
 // The index
 
-/// Receives the cells that a gather visits, as runs of consecutive cells, with the photons
-/// in cell order. (The photons are passed along rather than held: a mutable visitor holding
-/// storage buffer slices crashed NVIDIA's SPIR-V compiler, driver 580.)
+/// Receives the photons that a gather visits, one or two at a time or as runs of consecutive
+/// cells, with the photons in cell order. (The photons are passed along rather than held: a
+/// mutable visitor holding storage buffer slices crashed NVIDIA's SPIR-V compiler, driver 580.)
 pub trait CellVisitor {
-    /// Visits cells `first..end`, whose photons are those from `sorted.offsets[first]` to
-    /// `sorted.offsets[end]`.
-    fn cells(&mut self, first: u32, end: u32, sorted: &SortedPhotons);
+    /// Visits photon `j` of `sorted`.
+    fn photon(&mut self, j: u32, sorted: &SortedPhotons);
+    /// Visits photons `j` and `j + 1`.
+    #[inline(always)]
+    fn photons2(&mut self, j: u32, sorted: &SortedPhotons) {
+        self.photon(j, sorted);
+        self.photon(j + 1, sorted);
+    }
+    /// Visits the photons from `sorted.offsets[first]` to `sorted.offsets[end]`: those of a
+    /// run of cells whose offsets are at `first..end` (`offset_slot`).
+    #[inline(always)]
+    fn cells(&mut self, first: u32, end: u32, sorted: &SortedPhotons) {
+        let (a, b) = (sorted.offsets[first as usize], sorted.offsets[end as usize]);
+        let mut j = a;
+        while j < b {
+            self.photon(j, sorted);
+            j += 1;
+        }
+    }
 }
 
 /// Where photons live: the cell of a photon, and the cells a disc query must look at.
 pub trait PhotonIndex {
     /// The cell (of `map`: 0 global, 1 caustic) that holds a photon at `p`.
     fn cell(&self, p: [f32; 3], map: u32) -> u32;
-    /// Calls `v.cells(first, end, sorted)` for runs of consecutive cells of `map` that hold
+    /// Visits (`CellVisitor`) the photons of runs of consecutive cells of `map` that hold
     /// every cell that may hold a photon within `r` of `x` (and possibly others), each such
     /// cell once.
     fn visit<V: CellVisitor>(&self, x: [f32; 3], r: f32, map: u32, sorted: &SortedPhotons, v: &mut V);
@@ -432,7 +448,8 @@ pub trait PhotonIndex {
 /// place in the block (coordinates modulo w). Any w consecutive cells along an axis differ
 /// modulo w, so the cells of one query never share a bucket: each is visited once, with no
 /// bookkeeping. Smaller cells (w = 3) visit about half the area (9r² against 16r²) in more,
-/// smaller cells.
+/// smaller cells. A block's cells are sorted together, as one segment (`sort::segment_offsets`:
+/// its offsets at `offset_slot`), so that each row of a window within a block is one run.
 pub struct HashGrid {
     /// The scene box's minimum corner; cells are counted from one cell below it.
     pub origin: [f32; 3],
@@ -501,27 +518,61 @@ impl PhotonIndex for HashGrid {
         // Along x, the cells of one block are consecutive buckets: a row of the window is one
         // run, or two where it crosses into the next block. The block hash is nested as in
         // `bucket`.
-        let base = map * self.cells;
+        // Offsets come by segments of a block's w³ cells (`offset_slot`), w³ + 1 entries each.
+        let first_block = map * self.blocks;
         let w3 = w * w * w;
         let (qx0, mx0) = (lo[0] / w, lo[0] % w);
         let n = hi[0] - lo[0] + 1;
         let first_run = n.min(w - mx0);
-        let mut z = lo[2];
-        while z <= hi[2] {
-            let hz = pcg_hash(z / w);
-            let mut y = lo[1];
-            while y <= hi[1] {
-                let hy = pcg_hash((y / w) ^ hz);
-                let place = w * (y % w + w * (z % w)) + base;
-                let c = (pcg_hash(qx0 ^ hy) & (self.blocks - 1)) * w3 + mx0 + place;
-                v.cells(c, c + first_run, sorted);
-                if first_run < n {
-                    let c = (pcg_hash((qx0 + 1) ^ hy) & (self.blocks - 1)) * w3 + place;
-                    v.cells(c, c + n - first_run, sorted);
+        // The row (y, z) and its block coordinates (c / w, c % w), stepped without divisions
+        // (w is a push constant: a division by it costs tens of instructions).
+        let (qy0, my0) = (lo[1] / w, lo[1] % w);
+        let (mut y, mut qy, mut my) = (lo[1], qy0, my0);
+        let (mut z, mut qz, mut mz) = (lo[2], lo[2] / w, lo[2] % w);
+        let mut second = false;
+        // One loop over the photons of every run (a run's photons, or the next run): the
+        // lanes of a subgroup step through photons together even where their runs differ in
+        // length, instead of waiting at the end of each run for the longest.
+        let (mut j, mut b) = (0u32, 0u32);
+        loop {
+            if j + 1 < b {
+                // Two photons a step: both loads are issued before either is tested.
+                v.photons2(j, sorted);
+                j += 2;
+            } else if j < b {
+                v.photon(j, sorted);
+                j += 1;
+            } else if z <= hi[2] {
+                let hy = pcg_hash(qy ^ pcg_hash(qz));
+                let place = w * (my + w * mz);
+                let (block, o, len) = if second { (pcg_hash((qx0 + 1) ^ hy), 0, n - first_run) } else { (pcg_hash(qx0 ^ hy), mx0, first_run) };
+                let s = ((block & (self.blocks - 1)) + first_block) * (w3 + 1) + place + o;
+                j = sorted.offsets[s as usize];
+                b = sorted.offsets[(s + len) as usize];
+                // The next run: this row's second part, or the next row.
+                if !second && first_run < n {
+                    second = true;
+                } else {
+                    second = false;
+                    y += 1;
+                    my += 1;
+                    if my == w {
+                        my = 0;
+                        qy += 1;
+                    }
+                    if y > hi[1] {
+                        (y, qy, my) = (lo[1], qy0, my0);
+                        z += 1;
+                        mz += 1;
+                        if mz == w {
+                            mz = 0;
+                            qz += 1;
+                        }
+                    }
                 }
-                y += 1;
+            } else {
+                break;
             }
-            z += 1;
         }
     }
 }
@@ -636,9 +687,20 @@ fn map_of(p: &IndexParams, ph: &Photon) -> u32 {
     }
 }
 
-/// The cell of photon slot `i` (`NO_CELL` past the stored photons).
+/// The cell of photon slot `i` (`NO_CELL` past the stored photons), and the photon's place
+/// among its cell's (`sort::count_rank`, fused: one pass reads the photons once).
 #[inline(always)]
-pub fn keys<I: PhotonIndex, K: Store<u32> + ?Sized>(i: u32, p: &IndexParams, index: &I, photons: &[Photon], counter: &[u32], keys: &mut K) {
+pub fn keys<I: PhotonIndex, K: Store<u32> + ?Sized, C: AtomicStore + ?Sized, S: AtomicStore + ?Sized, R: Store<u32> + ?Sized>(
+    i: u32,
+    p: &IndexParams,
+    index: &I,
+    photons: &[Photon],
+    counter: &[u32],
+    keys: &mut K,
+    counts: &mut C,
+    segments: &mut S,
+    ranks: &mut R,
+) {
     if i < p.count {
         let stored = counter[0].min(p.count);
         let key = if i < stored {
@@ -648,26 +710,60 @@ pub fn keys<I: PhotonIndex, K: Store<u32> + ?Sized>(i: u32, p: &IndexParams, ind
             NO_CELL
         };
         keys.store(i as usize, key);
+        if key < p.cells * p.maps {
+            ranks.store(i as usize, crate::sort::rank(key, &sort_params(p), counts, segments));
+        }
     }
 }
 
-/// The photons in cell order: `words[j]`, `powers[j]` of `photons[order[j]]` for the
-/// `offsets[cells·maps]` placed ones.
+/// The index's counting sort: `p.cells · p.maps` keys, by segments of a block's cells for the
+/// hashed grid (`sort::segment_offsets`), exact for the kd index.
 #[inline(always)]
-pub fn permute<W: Store<PhotonWord> + ?Sized, P: Store<u32> + ?Sized>(
+pub fn sort_params(p: &IndexParams) -> SortParams {
+    let w = grid_window(p.grid);
+    SortParams { count: p.count, cells: p.cells * p.maps, segment: if p.kind == INDEX_KD { 0 } else { w * w * w }, _pad: 0 }
+}
+
+/// Where the offset of cell `cell` is: the hashed grid's offsets come by segments of a block's
+/// cells (`sort::segment_slot`), the kd index's in cell order.
+#[inline(always)]
+pub fn offset_slot(p: &IndexParams, cell: u32) -> u32 {
+    let seg = sort_params(p).segment;
+    if seg == 0 {
+        cell
+    } else {
+        crate::sort::segment_slot(cell, seg)
+    }
+}
+
+/// The photons of cell `cell`: `offsets[s]..offsets[s + 1]` for its `offset_slot` s.
+#[inline(always)]
+pub fn cell_range(p: &IndexParams, offsets: &[u32], cell: u32) -> (u32, u32) {
+    let s = offset_slot(p, cell) as usize;
+    (offsets[s], offsets[s + 1])
+}
+
+/// Photon slot `i` into cell order: `words`, `powers` at its cell's offset plus its rank
+/// (slots without a cell are left out).
+#[inline(always)]
+pub fn place<W: Store<PhotonWord> + ?Sized, P: Store<u32> + ?Sized>(
     i: u32,
     p: &IndexParams,
     photons: &[Photon],
-    order: &[u32],
+    keys: &[u32],
+    ranks: &[u32],
     offsets: &[u32],
     words: &mut W,
     powers: &mut P,
 ) {
-    let placed = offsets[(p.cells * p.maps) as usize];
-    if i < p.count && i < placed {
-        let ph = photons[order[i as usize] as usize];
-        words.store(i as usize, PhotonWord::of(&ph));
-        powers.store(i as usize, ph.power);
+    if i < p.count {
+        let key = keys[i as usize];
+        if key < p.cells * p.maps {
+            let slot = (offsets[offset_slot(p, key) as usize] + ranks[i as usize]) as usize;
+            let ph = photons[i as usize];
+            words.store(slot, PhotonWord::of(&ph));
+            powers.store(slot, ph.power);
+        }
     }
 }
 
@@ -687,33 +783,41 @@ struct Sum {
     other: u32,
 }
 
+impl Sum {
+    /// Photon `j`, whose word is `w`.
+    #[inline(always)]
+    fn add(&mut self, w: UVec4, j: u32, sorted: &SortedPhotons) {
+        let d = sub3([f32::from_bits(w.x), f32::from_bits(w.y), f32::from_bits(w.z)], self.x);
+        let d2 = dot3(d, d);
+        if d2 <= self.r2 {
+            if dot3(decode_oct(w.w & 0xffff, 8), self.n) <= 0.5 {
+                self.other += 1;
+            } else if !(self.skip_direct && w.w & DIRECT_BIT != 0) {
+                let k = if self.filter == FILTER_CONE {
+                    3.0 * (1.0 - crate::math::sqrt(d2 / self.r2))
+                } else if self.filter == FILTER_EPANECHNIKOV {
+                    2.0 * (1.0 - d2 / self.r2)
+                } else {
+                    1.0
+                };
+                self.sum = add3(self.sum, scale3(decode_rgb9e5(sorted.powers[j as usize]), k));
+                self.found += 1;
+            }
+        }
+    }
+}
+
 impl CellVisitor for Sum {
     #[inline(always)]
-    fn cells(&mut self, first: u32, end: u32, sorted: &SortedPhotons) {
-        let (a, b) = (sorted.offsets[first as usize], sorted.offsets[end as usize]);
-        let mut j = a;
-        while j < b {
-            // One 16-byte load decides most photons: those outside the disc.
-            let w = sorted.words[j as usize].word;
-            let d = sub3([f32::from_bits(w.x), f32::from_bits(w.y), f32::from_bits(w.z)], self.x);
-            let d2 = dot3(d, d);
-            if d2 <= self.r2 {
-                if dot3(decode_oct(w.w & 0xffff, 8), self.n) <= 0.5 {
-                    self.other += 1;
-                } else if !(self.skip_direct && w.w & DIRECT_BIT != 0) {
-                    let k = if self.filter == FILTER_CONE {
-                        3.0 * (1.0 - crate::math::sqrt(d2 / self.r2))
-                    } else if self.filter == FILTER_EPANECHNIKOV {
-                        2.0 * (1.0 - d2 / self.r2)
-                    } else {
-                        1.0
-                    };
-                    self.sum = add3(self.sum, scale3(decode_rgb9e5(sorted.powers[j as usize]), k));
-                    self.found += 1;
-                }
-            }
-            j += 1;
-        }
+    fn photon(&mut self, j: u32, sorted: &SortedPhotons) {
+        // One 16-byte load decides most photons: those outside the disc.
+        self.add(sorted.words[j as usize].word, j, sorted);
+    }
+    #[inline(always)]
+    fn photons2(&mut self, j: u32, sorted: &SortedPhotons) {
+        let (w0, w1) = (sorted.words[j as usize].word, sorted.words[j as usize + 1].word);
+        self.add(w0, j, sorted);
+        self.add(w1, j + 1, sorted);
     }
 }
 

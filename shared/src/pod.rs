@@ -247,8 +247,10 @@ pub struct SortParams {
     /// Cells: keys below it are sorted, others left out. For the passes over a level of the
     /// scan, the level's elements.
     pub cells: u32,
+    /// Keys per segment when the offsets come by segments (`sort::segment_offsets`), else 0.
+    pub segment: u32,
     /// Padding to 16 bytes.
-    pub _pad: [u32; 2],
+    pub _pad: u32,
 }
 
 /// Push constants of simple per-item kernels (`rng_fill`).

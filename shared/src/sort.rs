@@ -1,20 +1,32 @@
-//! Counting sort of items by a small integer key (a cell), as per-item kernels: the photon
-//! index sorts photons by cell with it. The passes, each one item per thread:
+//! Counting sorts of items by a small integer key (a cell), as per-item kernels; the photon
+//! index sorts photons by cell with them. Every item first takes its place among its key's:
 //!
-//! 1. `count_keys`: `counts[key[i]] += 1` (atomic);
-//! 2. up the levels, `chunk_sums`: the sum of every chunk of `CHUNK` consecutive elements of
-//!    the level below (the counts, then the sums), until a level has at most `CHUNK` elements
-//!    (3.5 M cells: 110 592, 3 456, 108, 4);
-//! 3. `scan_top`: one item, the exclusive prefix sum of the top level (at most `CHUNK` elements);
-//! 4. down the levels, `exclusive_level`, one item per element: the element's chunk's prefix
-//!    plus the elements before it in the chunk; at the bottom `exclusive` writes `offsets[c]` =
-//!    items with a smaller key (`offsets[cells]` = all counted) and a copy as the scatter cursors;
-//! 5. `scatter`: item i goes to `order[cursor[key[i]]++]` (atomic).
+//! 1. `count_rank`: `ranks[i] = counts[key[i]]++` (atomic; keys ≥ `cells` are left out), and
+//!    with segments, `segments[key[i] / seg]++`.
 //!
-//! The dispatches grow with log32 of the cells: 2 L + 3 for L levels (3.5 M cells: 11, against
-//! 21 with a Hillis–Steele scan of the chunk sums), the histogram's clear aside. Items with a key ≥ `cells` are left out (not counted, not placed). Within a cell the
-//! order of items is whatever order the atomic increments happened in (on a GPU, not
-//! deterministic); the offsets are exact.
+//! Then the keys' offsets, one of two ways:
+//!
+//! * exact, in key order: up the levels, `chunk_sums`, the sum of every chunk of `CHUNK`
+//!   consecutive elements of the level below (the counts, then the sums), until a level has at
+//!   most `CHUNK` elements (3.5 M cells: 110 592, 3 456, 108, 4); `scan_top`, one item, the
+//!   exclusive prefix sum of the top level; down the levels, `exclusive_level`, one item per
+//!   element: the element's chunk's prefix plus the elements before it in the chunk; at the
+//!   bottom `exclusive` writes `offsets[k]` = items with a smaller key (`offsets[cells]` = all
+//!   counted). 2 L + 1 dispatches for L levels (3.5 M cells: 9).
+//! * by segments, in one dispatch: keys come in segments of `seg` consecutive keys (a photon
+//!   grid's block of cells); `segment_offsets` gives each segment that holds items a range of
+//!   slots by one atomic addition to a total and writes its keys' offsets within it, in key
+//!   order (segments without items write nothing: the offsets are cleared before). Segments lie in whatever order their additions happened, so a key's offset is at
+//!   `segment_slot(key, seg)` (`seg + 1` entries per segment, the last its end) and only keys of
+//!   one segment are contiguous — all a query of runs inside segments needs, without a scan
+//!   over every key.
+//!
+//! 2. `scatter`: item i goes to `order[offsets[slot] + ranks[i]]` (no atomics; `slot` the key,
+//!    or `segment_slot` of it). A caller can place its own records there instead (the photon
+//!    index writes the photons themselves).
+//!
+//! Within a key the order of items is whatever order the atomic increments happened in (on a
+//! GPU, not deterministic); the offsets are exact.
 use crate::kernel::{AtomicStore, Store};
 use crate::pod::SortParams;
 
@@ -27,13 +39,35 @@ pub fn chunks(cells: u32) -> u32 {
     cells.div_ceil(CHUNK)
 }
 
-/// Pass 1: item `i` adds 1 to its key's count (keys ≥ `p.cells` are left out).
+/// The place of an item of key `key` among its key's items (its key's count so far, added to
+/// atomically), counting it in its segment's items too when keys come by segments (`p.segment`
+/// > 0); keys ≥ `p.cells` are left out (rank 0, nothing counted).
 #[inline(always)]
-pub fn count_keys<C: AtomicStore + ?Sized>(i: u32, p: &SortParams, keys: &[u32], counts: &mut C) {
+pub fn rank<C: AtomicStore + ?Sized, S: AtomicStore + ?Sized>(key: u32, p: &SortParams, counts: &mut C, segments: &mut S) -> u32 {
+    if key >= p.cells {
+        return 0;
+    }
+    if p.segment > 0 {
+        segments.atomic_add((key / p.segment) as usize, 1);
+    }
+    counts.atomic_add(key as usize, 1)
+}
+
+/// Item `i` takes its place among the items of its key: `ranks[i]` (`rank`; keys ≥ `p.cells`
+/// are left out).
+#[inline(always)]
+pub fn count_rank<C: AtomicStore + ?Sized, S: AtomicStore + ?Sized, R: Store<u32> + ?Sized>(
+    i: u32,
+    p: &SortParams,
+    keys: &[u32],
+    counts: &mut C,
+    segments: &mut S,
+    ranks: &mut R,
+) {
     if i < p.count {
         let k = keys[i as usize];
         if k < p.cells {
-            counts.atomic_add(k as usize, 1);
+            ranks.store(i as usize, rank(k, p, counts, segments));
         }
     }
 }
@@ -94,34 +128,59 @@ pub fn exclusive_level<O: Store<u32> + ?Sized>(i: u32, p: &SortParams, input: &[
 }
 
 /// Cell `i`, the bottom level: its offset (`cells + 1` entries: item `cells` writes the total)
-/// and scatter cursor (`cells` entries) from the counts and the chunks' prefixes `above`.
+/// from the counts and the chunks' prefixes `above`.
 #[inline(always)]
-pub fn exclusive<O: Store<u32> + ?Sized, C: Store<u32> + ?Sized>(
-    i: u32,
-    p: &SortParams,
-    counts: &[u32],
-    above: &[u32],
-    offsets: &mut O,
-    cursor: &mut C,
-) {
+pub fn exclusive<O: Store<u32> + ?Sized>(i: u32, p: &SortParams, counts: &[u32], above: &[u32], offsets: &mut O) {
     if i <= p.cells {
-        let v = prefix_at(i, p.cells, counts, above);
-        offsets.store(i as usize, v);
-        if i < p.cells {
-            cursor.store(i as usize, v);
-        }
+        offsets.store(i as usize, prefix_at(i, p.cells, counts, above));
     }
 }
 
-/// Pass 5: item `i` takes the next slot of its key's cursor and writes its index there (keys
-/// ≥ `p.cells` are left out).
+/// Where key `key`'s offset is when keys are sorted by segments of `seg` keys: its segment's
+/// `seg + 1` entries, then its place in the segment. The end of keys `key..key + n` of one
+/// segment is at `segment_slot(key, seg) + n`.
 #[inline(always)]
-pub fn scatter<C: AtomicStore + ?Sized, O: Store<u32> + ?Sized>(i: u32, p: &SortParams, keys: &[u32], cursor: &mut C, order: &mut O) {
+pub fn segment_slot(key: u32, seg: u32) -> u32 {
+    key / seg * (seg + 1) + key % seg
+}
+
+/// Segment `s` of `p.cells / seg` (`p.cells` keys in segments of `seg = p.segment`, holding
+/// `segments[s]` items): its `seg + 1` offsets (`segment_slot`), from a range of slots taken by
+/// one atomic addition to `total[0]`. A segment without items takes none and writes nothing
+/// (its offsets stay as cleared: 0).
+#[inline(always)]
+pub fn segment_offsets<T: AtomicStore + ?Sized, O: Store<u32> + ?Sized>(
+    s: u32,
+    p: &SortParams,
+    counts: &[u32],
+    segments: &[u32],
+    total: &mut T,
+    offsets: &mut O,
+) {
+    let seg = p.segment;
+    if seg == 0 || s >= p.cells / seg || segments[s as usize] == 0 {
+        return;
+    }
+    let mut v = total.atomic_add(0, segments[s as usize]);
+    let (first, out) = (s * seg, s * (seg + 1));
+    let mut k = 0;
+    while k < seg {
+        offsets.store((out + k) as usize, v);
+        v = v.wrapping_add(counts[(first + k) as usize]);
+        k += 1;
+    }
+    offsets.store((out + seg) as usize, v);
+}
+
+/// Item `i` to its slot: `order[offsets[slot] + ranks[i]] = i`, `slot` its key, or
+/// `segment_slot` of it when `p.segment` > 0 (keys ≥ `p.cells` are left out).
+#[inline(always)]
+pub fn scatter<O: Store<u32> + ?Sized>(i: u32, p: &SortParams, keys: &[u32], ranks: &[u32], offsets: &[u32], order: &mut O) {
     if i < p.count {
         let k = keys[i as usize];
         if k < p.cells {
-            let slot = cursor.atomic_add(k as usize, 1);
-            order.store(slot as usize, i);
+            let slot = if p.segment > 0 { segment_slot(k, p.segment) } else { k };
+            order.store((offsets[slot as usize] + ranks[i as usize]) as usize, i);
         }
     }
 }

@@ -4,8 +4,9 @@
 //!
 //! 1. **trace** — `photons` photons leave the lights (`photon::emit`), then per bounce a
 //!    closest-hit query and `photon::bounce` (store at diffuse hits, Russian roulette);
-//! 2. **index** — every stored photon's cell (hashed grid or kd leaves), a counting sort by
-//!    cell on the device (`sort::CountingSort`), the records permuted into cell order;
+//! 2. **index** — every stored photon's cell (hashed grid or kd leaves) and rank in it, the
+//!    cells' offsets on the device (`sort::CountingSort`: by segments of a grid block's cells,
+//!    or exact for the kd index's), the records placed in cell order;
 //! 3. **eye** — one jittered sample per pixel through specular bounces to a diffuse gather
 //!    point, direct light by a shadow ray (or from the photon map);
 //! 4. **gather** — the photons within the pass's radius at each gather point, added to the
@@ -22,7 +23,7 @@ use super::path::{self, FrameBuffers, PathOptions};
 use super::{Progress, RenderOutput, SamplerKind};
 use crate::accel::Accel;
 use crate::kdtree::KdTreeData;
-use crate::kernels::{EmitPhotons, Film, Gather, IndexBinds, PermutePhotons, PhotonBounce, PhotonKeys, TracePhotons};
+use crate::kernels::{EmitPhotons, Film, Gather, IndexBinds, PhotonBounce, PhotonKeys, PlacePhotons, TracePhotons};
 use crate::runtime::{cast, Buffer, Kernel, Pending, Runtime};
 use crate::sort::CountingSort;
 use crate::tracer::{LeafLists, Tracer};
@@ -212,7 +213,6 @@ pub struct PhotonMap<'t> {
     /// not stored).
     pub counter: Buffer<u32>,
     keys: Buffer<u32>,
-    order: Buffer<u32>,
     sort: CountingSort<'t>,
     /// Photon slots in `records`, `sorted` and the index (grown when a pass stores more).
     pub capacity: u32,
@@ -312,7 +312,7 @@ impl<'t> PhotonMap<'t> {
             }
         };
         let cells = Self::cells_for(o.index, capacity, o.grid_window);
-        let sort = CountingSort::new(rt, cells.checked_mul(maps).ok_or_else(|| err!(TooLarge: "too many photon cells"))?)?;
+        let sort = Self::sort_for(rt, o.index, o.grid_window, cells, maps, capacity)?;
         Ok(PhotonMap {
             t,
             accel,
@@ -326,7 +326,6 @@ impl<'t> PhotonMap<'t> {
             sorted_powers: rt.alloc("sorted photon power", capacity as usize)?,
             counter: rt.alloc("photon counter", 1)?,
             keys: rt.alloc("photon cell", capacity as usize)?,
-            order: rt.alloc("photon order", capacity as usize)?,
             sort,
             capacity,
             cells,
@@ -351,6 +350,16 @@ impl<'t> PhotonMap<'t> {
         }
     }
 
+    /// The index's counting sort: by segments of a grid block's window³ cells (each row of a
+    /// gather's window within a block is then one run), exact offsets for the kd index.
+    fn sort_for(rt: &'t dyn Runtime, kind: IndexKind, window: u32, cells: u32, maps: u32, capacity: u32) -> Result<CountingSort<'t>> {
+        let keys = cells.checked_mul(maps).ok_or_else(|| err!(TooLarge: "too many photon cells"))?;
+        match kind {
+            IndexKind::Grid => CountingSort::segmented(rt, keys, window * window * window, capacity),
+            IndexKind::Kd => CountingSort::new(rt, keys, capacity),
+        }
+    }
+
     fn grow(&mut self, stored: u32) -> Result<()> {
         let rt = self.t.rt;
         let capacity = (stored as u64 * 5 / 4).min(u32::MAX as u64 / 2) as u32;
@@ -358,13 +367,9 @@ impl<'t> PhotonMap<'t> {
         self.sorted = rt.alloc("sorted photon", capacity as usize)?;
         self.sorted_powers = rt.alloc("sorted photon power", capacity as usize)?;
         self.keys = rt.alloc("photon cell", capacity as usize)?;
-        self.order = rt.alloc("photon order", capacity as usize)?;
         self.capacity = capacity;
-        let cells = Self::cells_for(self.o.index, capacity, self.o.grid_window);
-        if cells != self.cells {
-            self.cells = cells;
-            self.sort = CountingSort::new(rt, cells * self.maps)?;
-        }
+        self.cells = Self::cells_for(self.o.index, capacity, self.o.grid_window);
+        self.sort = Self::sort_for(rt, self.o.index, self.o.grid_window, self.cells, self.maps, capacity)?;
         Ok(())
     }
 
@@ -500,17 +505,19 @@ impl<'t> PhotonMap<'t> {
         self.record_index_steps(c, pass, 3)
     }
 
-    /// The first `steps` of the index build (1: keys, 2: + counting sort, 3: + permutation),
-    /// for timing the parts.
+    /// The first `steps` of the index build (1: keys and ranks, 2: + the cells' offsets, 3: +
+    /// the photons placed), for timing the parts.
     pub fn record_index_steps(&self, c: &mut crate::runtime::Commands, pass: u32, steps: u32) -> Result<()> {
         let rt = self.t.rt;
         let p = self.index_params(pass, self.capacity);
-        rt.dispatch(c, &PhotonKeys { params: p, index: self.index_binds(), photons: &self.records, counter: &self.counter, keys: &self.keys })?;
+        let s = &self.sort;
+        s.record_clear(c)?;
+        rt.dispatch(c, &PhotonKeys { params: p, index: self.index_binds(), photons: &self.records, counter: &self.counter, keys: &self.keys, counts: &s.counts, segments: &s.segments, ranks: &s.ranks })?;
         if steps > 1 {
-            self.sort.record(c, &self.keys, self.capacity, &self.order)?;
+            s.record_offsets(c)?;
         }
         if steps > 2 {
-            let k = PermutePhotons { params: p, photons: &self.records, order: &self.order, offsets: &self.sort.offsets, words: &self.sorted, powers: &self.sorted_powers };
+            let k = PlacePhotons { params: p, photons: &self.records, keys: &self.keys, ranks: &s.ranks, offsets: &s.offsets, words: &self.sorted, powers: &self.sorted_powers };
             rt.dispatch(c, &k)?;
         }
         Ok(())
@@ -619,10 +626,11 @@ impl<'t> PhotonMap<'t> {
         self.t.rt.read(&self.records, n)
     }
 
-    /// The sorted photons and the cell offsets of the last index (tests, diagnostics).
+    /// The sorted photons and the cell offsets of the last index (tests, diagnostics; cell c's
+    /// photons: `photon::cell_range`).
     pub fn read_index(&self) -> Result<(Vec<Photon>, Vec<u32>)> {
-        let offsets = self.t.rt.read(&self.sort.offsets, (self.cells * self.maps) as usize + 1)?;
-        let n = *offsets.last().unwrap() as usize;
+        let offsets = self.t.rt.read(&self.sort.offsets, self.sort.offsets.len())?;
+        let n = self.sort.placed()? as usize;
         let (words, powers) = (self.t.rt.read(&self.sorted, n)?, self.t.rt.read(&self.sorted_powers, n)?);
         Ok((words.iter().zip(powers).map(|(w, p)| w.photon(p)).collect(), offsets))
     }

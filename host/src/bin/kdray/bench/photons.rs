@@ -85,7 +85,7 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
     o.progress.set_length(specs.len() as u64 * 2);
     let speed_header: Vec<String> = [
         "scene", "triangles", "photons", "rays traced", "bounces", "bounces/photon", "stored", "trace ms", "M bounces/s", "BVH trace ms", "BVH M bounces/s",
-        "split trace ms", "trace parts: emit only / first hit only / no stores ms", "index grid ms", "grid keys / sort / permute ms", "cells, slots", "index kd ms", "eye ms", "BVH eye ms", "gather grid ms", "gather grid 2r ms", "gather kd ms", "final gather: stored", "BVH eye + final gather + gather ms", "image",
+        "split trace ms", "trace parts: emit only / first hit only / no stores ms", "index grid ms", "grid keys+ranks / offsets / place ms", "cells, slots", "index kd ms", "eye ms", "BVH eye ms", "gather grid ms", "gather grid 2r ms", "gather kd ms", "final gather: stored", "BVH eye + final gather + gather ms", "image",
     ]
     .map(String::from)
     .to_vec();
