@@ -10,7 +10,7 @@
 use crate::error::{bail, Result};
 use crate::kernels::{ChunkSums, CountRank, ExclusiveLevel, ExclusiveOffsets, ScanTop, ScatterKeys, SegmentOffsets};
 use crate::runtime::{Buffer, Commands, Runtime};
-use kdray_shared::sort::{segment_slot, CHUNK};
+use kdray_shared::sort::CHUNK;
 use kdray_shared::SortParams;
 
 /// How a sort's offsets are made.
@@ -35,7 +35,7 @@ pub struct CountingSort<'r> {
     pub ranks: Buffer<u32>,
     how: Offsets,
     /// The cells' offsets: exact, `cells + 1` entries (the last: all items counted); by
-    /// segments, `seg + 1` per segment of `seg` cells (`slot`).
+    /// segments, `seg + 1` per segment of `seg` cells (key k's at `sort::segment_slot(k, seg)`).
     pub offsets: Buffer<u32>,
 }
 
@@ -96,14 +96,6 @@ impl<'r> CountingSort<'r> {
         }
     }
 
-    /// Where key `key`'s offset is in `offsets` (its end: the next entry).
-    pub fn slot(&self, key: u32) -> u32 {
-        match self.how {
-            Offsets::Scan(_) => key,
-            Offsets::Segments(seg, _) => segment_slot(key, seg),
-        }
-    }
-
     /// Records clearing the counts (and by segments, the segments' counts, their total and
     /// the offsets, which segments without items leave as they are): before counting.
     pub fn record_clear(&self, c: &mut Commands) -> Result<()> {
@@ -146,7 +138,8 @@ impl<'r> CountingSort<'r> {
     }
 
     /// Records sorting the first `n` of `keys` by cell: the item indices into `order`, each
-    /// cell's from `offsets[slot(c)]` to `offsets[slot(c) + 1]`. Keys ≥ `cells` are left out.
+    /// cell's from `offsets[s]` to `offsets[s + 1]` for its slot s (the key itself, or
+    /// `sort::segment_slot` of it). Keys ≥ `cells` are left out.
     pub fn record(&self, c: &mut Commands, keys: &Buffer<u32>, n: u32, order: &Buffer<u32>) -> Result<()> {
         if n as usize > keys.len() || n as usize > order.len() || n as usize > self.ranks.len() {
             bail!(TooLarge: "a counting sort of {n} items with {} keys, room for {} and {} ranks", keys.len(), order.len(), self.ranks.len());
@@ -169,8 +162,8 @@ impl<'r> CountingSort<'r> {
 
 /// Sorts `keys` (< `cells`; others are left out) on `rt`, exact offsets or by segments of
 /// `seg` keys (`Some(seg)`): the offsets buffer as the sort leaves it (`CountingSort::offsets`)
-/// and the items in key order, `order[offsets[slot(c)]..offsets[slot(c) + 1]]` those of cell
-/// c.
+/// and the items in key order, `order[offsets[s]..offsets[s + 1]]` those of cell c for its slot
+/// s (c, or `sort::segment_slot(c, seg)`).
 pub fn counting_sort(rt: &dyn Runtime, keys: &[u32], cells: u32, seg: Option<u32>) -> Result<(Vec<u32>, Vec<u32>)> {
     let n = keys.len() as u32;
     let s = match seg {

@@ -412,12 +412,8 @@ pub fn trace_photon<M: Method, O: Store<Photon> + ?Sized, C: AtomicStore + ?Size
 pub trait CellVisitor {
     /// Visits photon `j` of `sorted`.
     fn photon(&mut self, j: u32, sorted: &SortedPhotons);
-    /// Visits photons `j` and `j + 1`.
-    #[inline(always)]
-    fn photons2(&mut self, j: u32, sorted: &SortedPhotons) {
-        self.photon(j, sorted);
-        self.photon(j + 1, sorted);
-    }
+    /// Visits photons `j` and `j + 1` (loading both before testing either).
+    fn photons2(&mut self, j: u32, sorted: &SortedPhotons);
     /// Visits the photons from `sorted.offsets[first]` to `sorted.offsets[end]`: those of a
     /// run of cells whose offsets are at `first..end` (`offset_slot`).
     #[inline(always)]
@@ -710,9 +706,7 @@ pub fn keys<I: PhotonIndex, K: Store<u32> + ?Sized, C: AtomicStore + ?Sized, S: 
             NO_CELL
         };
         keys.store(i as usize, key);
-        if key < p.cells * p.maps {
-            ranks.store(i as usize, crate::sort::rank(key, &sort_params(p), counts, segments));
-        }
+        ranks.store(i as usize, crate::sort::rank(key, &sort_params(p), counts, segments));
     }
 }
 
@@ -728,12 +722,7 @@ pub fn sort_params(p: &IndexParams) -> SortParams {
 /// cells (`sort::segment_slot`), the kd index's in cell order.
 #[inline(always)]
 pub fn offset_slot(p: &IndexParams, cell: u32) -> u32 {
-    let seg = sort_params(p).segment;
-    if seg == 0 {
-        cell
-    } else {
-        crate::sort::segment_slot(cell, seg)
-    }
+    crate::sort::offset_slot(cell, &sort_params(p))
 }
 
 /// The photons of cell `cell`: `offsets[s]..offsets[s + 1]` for its `offset_slot` s.

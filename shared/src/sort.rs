@@ -16,10 +16,11 @@
 //! * by segments, in one dispatch: keys come in segments of `seg` consecutive keys (a photon
 //!   grid's block of cells); `segment_offsets` gives each segment that holds items a range of
 //!   slots by one atomic addition to a total and writes its keys' offsets within it, in key
-//!   order (segments without items write nothing: the offsets are cleared before). Segments lie in whatever order their additions happened, so a key's offset is at
-//!   `segment_slot(key, seg)` (`seg + 1` entries per segment, the last its end) and only keys of
-//!   one segment are contiguous — all a query of runs inside segments needs, without a scan
-//!   over every key.
+//!   order (segments without items write nothing: the offsets are cleared before). Segments
+//!   lie in whatever order their additions happened, so a key's offset is at
+//!   `segment_slot(key, seg)` (`seg + 1` entries per segment, the last its end) and only keys
+//!   of one segment are contiguous — all a query of runs inside segments needs, without a
+//!   scan over every key.
 //!
 //! 2. `scatter`: item i goes to `order[offsets[slot] + ranks[i]]` (no atomics; `slot` the key,
 //!    or `segment_slot` of it). A caller can place its own records there instead (the photon
@@ -54,7 +55,7 @@ pub fn rank<C: AtomicStore + ?Sized, S: AtomicStore + ?Sized>(key: u32, p: &Sort
 }
 
 /// Item `i` takes its place among the items of its key: `ranks[i]` (`rank`; keys ≥ `p.cells`
-/// are left out).
+/// are left out, their rank 0 and never used).
 #[inline(always)]
 pub fn count_rank<C: AtomicStore + ?Sized, S: AtomicStore + ?Sized, R: Store<u32> + ?Sized>(
     i: u32,
@@ -65,10 +66,7 @@ pub fn count_rank<C: AtomicStore + ?Sized, S: AtomicStore + ?Sized, R: Store<u32
     ranks: &mut R,
 ) {
     if i < p.count {
-        let k = keys[i as usize];
-        if k < p.cells {
-            ranks.store(i as usize, rank(k, p, counts, segments));
-        }
+        ranks.store(i as usize, rank(keys[i as usize], p, counts, segments));
     }
 }
 
@@ -144,6 +142,17 @@ pub fn segment_slot(key: u32, seg: u32) -> u32 {
     key / seg * (seg + 1) + key % seg
 }
 
+/// Where key `key`'s offset is: at the key itself, or at `segment_slot` of it when keys come
+/// by segments (`p.segment` > 0).
+#[inline(always)]
+pub fn offset_slot(key: u32, p: &SortParams) -> u32 {
+    if p.segment > 0 {
+        segment_slot(key, p.segment)
+    } else {
+        key
+    }
+}
+
 /// Segment `s` of `p.cells / seg` (`p.cells` keys in segments of `seg = p.segment`, holding
 /// `segments[s]` items): its `seg + 1` offsets (`segment_slot`), from a range of slots taken by
 /// one atomic addition to `total[0]`. A segment without items takes none and writes nothing
@@ -172,15 +181,14 @@ pub fn segment_offsets<T: AtomicStore + ?Sized, O: Store<u32> + ?Sized>(
     offsets.store((out + seg) as usize, v);
 }
 
-/// Item `i` to its slot: `order[offsets[slot] + ranks[i]] = i`, `slot` its key, or
-/// `segment_slot` of it when `p.segment` > 0 (keys ≥ `p.cells` are left out).
+/// Item `i` to its slot: `order[offsets[offset_slot(key)] + ranks[i]] = i` (keys ≥ `p.cells`
+/// are left out).
 #[inline(always)]
 pub fn scatter<O: Store<u32> + ?Sized>(i: u32, p: &SortParams, keys: &[u32], ranks: &[u32], offsets: &[u32], order: &mut O) {
     if i < p.count {
         let k = keys[i as usize];
         if k < p.cells {
-            let slot = if p.segment > 0 { segment_slot(k, p.segment) } else { k };
-            order.store((offsets[slot as usize] + ranks[i as usize]) as usize, i);
+            order.store((offsets[offset_slot(k, p) as usize] + ranks[i as usize]) as usize, i);
         }
     }
 }
