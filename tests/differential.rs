@@ -380,7 +380,7 @@ fn counting_sort_on_both_runtimes() {
         runtimes.push(g);
     }
     // Cell counts at and around the scan's chunk and level sizes (32, 32², 32³).
-    for (n, cells) in [(200_003usize, 1000u32), (5000, 1), (3000, 70_000), (0, 7), (10_000, 32), (10_000, 33), (20_000, 1024), (20_000, 1025), (100_000, 32 * 32 * 32 + 1)] {
+    for (n, cells) in [(200_003usize, 1000u32), (5000, 1), (3000, 70_000), (0, 7), (10_000, 32), (10_000, 33), (20_000, 1024), (20_000, 1025), (100_000, 32 * 32 * 32 + 1), (60_000, 27 * 1500), (500, 27)] {
         let mut rng = Rng::new(41, n as u32);
         // Skewed keys (many in few cells), and one in a hundred out of range.
         let keys: Vec<u32> = (0..n)

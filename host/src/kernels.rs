@@ -1070,7 +1070,8 @@ pub struct Gather<'a> {
     pub words: &'a Buffer<PhotonWord>,
     /// Their powers, in the same order.
     pub powers: &'a Buffer<u32>,
-    /// Cell offsets into `words` and `powers` (`offsets[c]..offsets[c + 1]` are cell c's).
+    /// Cell offsets into `words` and `powers` (`photon::cell_range`: cell c's from its
+    /// `offset_slot` s, `offsets[s]..offsets[s + 1]`).
     pub offsets: &'a Buffer<u32>,
     /// Read and written: each path's state; a path at a gather point gains the photons' radiance.
     pub paths: &'a Buffer<PathState>,

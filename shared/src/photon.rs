@@ -186,15 +186,15 @@ impl PhotonWord {
     }
 }
 
-/// The index's photons in cell order: cell c's are `offsets[c]..offsets[c + 1]` of `words`
-/// and `powers`.
+/// The index's photons in cell order: cell c's are `offsets[s]..offsets[s + 1]` of `words`
+/// and `powers`, s its `offset_slot` (`cell_range`).
 #[derive(Copy, Clone)]
 pub struct SortedPhotons<'a> {
     /// Positions and packed words (`PhotonWord`).
     pub words: &'a [PhotonWord],
     /// Powers (RGB9E5), in the same order.
     pub powers: &'a [u32],
-    /// Each cell's first photon; `offsets[cells · maps]` photons in all.
+    /// Each cell's first photon, at the cell's `offset_slot`; its end at the next entry.
     pub offsets: &'a [u32],
 }
 

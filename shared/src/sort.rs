@@ -27,7 +27,8 @@
 //!    index writes the photons themselves).
 //!
 //! Within a key the order of items is whatever order the atomic increments happened in (on a
-//! GPU, not deterministic); the offsets are exact.
+//! GPU, not deterministic), and so is the order of segments; each key's range holds exactly
+//! its items.
 use crate::kernel::{AtomicStore, Store};
 use crate::pod::SortParams;
 

@@ -499,14 +499,15 @@ impl<'t> PhotonMap<'t> {
         Some(leaf_cells(boxes, pass_radius(self.r0, self.o.alpha, pass), self.cells as u64))
     }
 
-    /// Records building the index of the stored photons into `c`: keys, counting sort,
-    /// permutation into `sorted`.
+    /// Records building the index of the stored photons into `c`: keys and ranks, the cells'
+    /// offsets, the photons placed into `sorted` in cell order.
     pub fn record_index(&self, c: &mut crate::runtime::Commands, pass: u32) -> Result<()> {
         self.record_index_steps(c, pass, 3)
     }
 
-    /// The first `steps` of the index build (1: keys and ranks, 2: + the cells' offsets, 3: +
-    /// the photons placed), for timing the parts.
+    /// The first `steps` of the index build (1: the clears, keys and ranks, 2: + the cells'
+    /// offsets, 3: + the photons placed), for timing the parts. Fewer than 3 leave the index
+    /// unfinished: by segments, the offsets need not match the photons placed before.
     pub fn record_index_steps(&self, c: &mut crate::runtime::Commands, pass: u32, steps: u32) -> Result<()> {
         let rt = self.t.rt;
         let p = self.index_params(pass, self.capacity);
