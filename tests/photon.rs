@@ -236,6 +236,20 @@ fn photon_indices_hold_every_photon_in_its_cell_and_gather_like_brute_force() {
     }
 }
 
+/// The kd index needs the kd-tree on the device: a tracer made without it is one clear error,
+/// not a grid index under the kd index's parameters.
+#[test]
+fn the_kd_photon_index_without_the_tree_on_the_device_is_an_error() {
+    let s = scene::load("cornell").unwrap();
+    let tr = tree(&s);
+    let t = Tracer::new(&NATIVE, &s, None).unwrap();
+    let e = PhotonMap::new(&t, Accel::BRUTE, Some(&tr), s.surface_area(), small_options(IndexKind::Kd, 1000)).err().expect("an error").to_string();
+    assert!(e.contains("kd photon index needs the kd-tree on the device"), "{e}");
+    let e = PhotonMap::new(&t, Accel::BRUTE, None, s.surface_area(), small_options(IndexKind::Kd, 1000)).err().expect("an error").to_string();
+    assert!(e.contains("kd photon index needs the scene's kd-tree"), "{e}");
+    assert!(PhotonMap::new(&t, Accel::BRUTE, None, s.surface_area(), small_options(IndexKind::Grid, 1000)).is_ok());
+}
+
 /// A 40 × 40 plane (albedo 0.5) at z = 0 under a point light of intensity 1 at height 1, seen
 /// from above.
 fn plane_scene() -> Scene {

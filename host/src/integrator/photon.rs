@@ -222,8 +222,8 @@ pub struct PhotonMap<'t> {
     bounds: ([f32; 3], [f32; 3]),
     /// The kd-tree's root cell (the traversals' scene box).
     tree_bounds: ([f32; 3], [f32; 3]),
-    /// The kd index: the tree's nodes on the device, each leaf's box (host), the cell table.
-    kd: Option<(Vec<Option<([f32; 3], [f32; 3])>>, Buffer<LeafCells>)>,
+    /// The kd index: each leaf's box (host), the cell table, the tree's nodes on the device.
+    kd: Option<(Vec<Option<([f32; 3], [f32; 3])>>, Buffer<LeafCells>, &'t Buffer<KdNode>)>,
     r0: f32,
 }
 
@@ -303,12 +303,13 @@ impl<'t> PhotonMap<'t> {
             IndexKind::Grid => None,
             IndexKind::Kd => {
                 let tree = tree.ok_or_else(|| err!(InvalidInput: "the kd photon index needs the scene's kd-tree (a kd traversal)"))?;
-                if let crate::tracer::AccelStructure::KdTree { nodes, .. } = &t.structure {
-                    if nodes.whole().is_none() {
-                        bail!(TooLarge: "the kd photon index needs the kd-tree's nodes in one storage buffer, and this scene's are split across {} (use the grid index)", nodes.parts().len());
-                    }
-                }
-                Some((leaf_boxes(&tree.nodes, tree.bounds.min, tree.bounds.max), rt.alloc("kd leaf cells", tree.nodes.len())?))
+                let nodes = match &t.structure {
+                    crate::tracer::AccelStructure::KdTree { nodes, .. } => nodes.whole().ok_or_else(|| {
+                        err!(TooLarge: "the kd photon index needs the kd-tree's nodes in one storage buffer, and this scene's are split across {} (use the grid index)", nodes.parts().len())
+                    })?,
+                    _ => bail!(InvalidInput: "the kd photon index needs the kd-tree on the device: make the tracer with the scene's kd-tree"),
+                };
+                Some((leaf_boxes(&tree.nodes, tree.bounds.min, tree.bounds.max), rt.alloc("kd leaf cells", tree.nodes.len())?, nodes))
             }
         };
         let cells = Self::cells_for(o.index, capacity, o.grid_window);
@@ -475,19 +476,16 @@ impl<'t> PhotonMap<'t> {
     }
 
     fn index_binds(&self) -> IndexBinds<'_> {
-        match (&self.kd, &self.t.structure) {
-            (Some((_, leaves)), crate::tracer::AccelStructure::KdTree { nodes, .. }) => match nodes.whole() {
-                Some(nodes) => IndexBinds::Kd { nodes, leaves },
-                None => unreachable!("PhotonMap::new refuses the kd index over split nodes"),
-            },
-            _ => IndexBinds::Grid,
+        match &self.kd {
+            Some((_, leaves, nodes)) => IndexBinds::Kd { nodes, leaves },
+            None => IndexBinds::Grid,
         }
     }
 
     /// Updates the kd index's cell table for pass `pass`'s radius (host: a function of the
     /// tree and the radius only).
     fn prepare_index(&mut self, pass: u32) -> Result<()> {
-        if let (Some(table), Some((_, buf))) = (self.leaf_table(pass), &self.kd) {
+        if let (Some(table), Some((_, buf, _))) = (self.leaf_table(pass), &self.kd) {
             self.t.rt.write(buf, &table)?;
         }
         Ok(())
@@ -495,7 +493,7 @@ impl<'t> PhotonMap<'t> {
 
     /// The kd index's cell table of pass `pass` (`None` for the grid).
     pub fn leaf_table(&self, pass: u32) -> Option<Vec<LeafCells>> {
-        let (boxes, _) = self.kd.as_ref()?;
+        let (boxes, _, _) = self.kd.as_ref()?;
         Some(leaf_cells(boxes, pass_radius(self.r0, self.o.alpha, pass), self.cells as u64))
     }
 
