@@ -351,13 +351,15 @@ impl<'t> PhotonMap<'t> {
         }
     }
 
-    /// The index's counting sort: by segments of a grid block's window³ cells (each row of a
-    /// gather's window within a block is then one run), exact offsets for the kd index.
+    /// The index's counting sort, as the kernels expect it (`photon::sort_params`: by segments
+    /// of a grid block's window³ cells, each row of a gather's window within a block then one
+    /// run; exact offsets for the kd index).
     fn sort_for(rt: &'t dyn Runtime, kind: IndexKind, window: u32, cells: u32, maps: u32, capacity: u32) -> Result<CountingSort<'t>> {
         let keys = cells.checked_mul(maps).ok_or_else(|| err!(TooLarge: "too many photon cells"))?;
-        match kind {
-            IndexKind::Grid => CountingSort::segmented(rt, keys, window * window * window, capacity),
-            IndexKind::Kd => CountingSort::new(rt, keys, capacity),
+        let kind = if kind == IndexKind::Kd { INDEX_KD } else { INDEX_GRID };
+        match kdray_shared::photon::sort_params(&IndexParams { kind, grid: window, cells, maps, ..Default::default() }).segment {
+            0 => CountingSort::new(rt, keys, capacity),
+            seg => CountingSort::segmented(rt, keys, seg, capacity),
         }
     }
 
