@@ -1075,6 +1075,10 @@ pub struct Gather<'a> {
     pub offsets: &'a Buffer<u32>,
     /// Read and written: each path's state; a path at a gather point gains the photons' radiance.
     pub paths: &'a Buffer<PathState>,
+    /// The final gather's points: written (appended to, `points[0]` their count, cleared
+    /// before) by a gather under `GATHER_EDGES`, read by one under `GATHER_LISTED`, whose items
+    /// they are (`photon::gather`). `count + 1` elements.
+    pub points: &'a Buffer<u32>,
 }
 
 impl Kernel for Gather<'_> {
@@ -1087,7 +1091,7 @@ impl Kernel for Gather<'_> {
     fn bindings(&self) -> Vec<Bind<'_>> {
         let mut b = vec![read("rays", self.rays), read("words", self.words), read("powers", self.powers), read("offsets", self.offsets)];
         b.extend(self.index.binds());
-        b.push(write("paths", self.paths));
+        b.extend([write("paths", self.paths), write("points", self.points)]);
         b
     }
     fn threads(&self) -> u32 {
@@ -1095,16 +1099,51 @@ impl Kernel for Gather<'_> {
     }
     fn run(&self, t: u32) {
         // SAFETY: called by the native runtime during the dispatch of this pass, which holds
-        // its bindings; item t writes paths[t] only.
+        // its bindings; item t writes the path it gathers for only (paths[t], or under
+        // `GATHER_LISTED` the t-th listed one: listed once each), adds to points[0] atomically
+        // and writes the point slot that returned.
         unsafe {
-            let (rays, mut paths) = (self.rays.host(), self.paths.host_store());
+            let (rays, mut paths, mut points) = (self.rays.host(), self.paths.host_store(), self.points.host_store());
             let sorted = SortedPhotons { words: self.words.host(), powers: self.powers.host(), offsets: self.offsets.host() };
             match self.index {
-                IndexBinds::Grid => photon::gather(t, &self.params, &HashGrid::new(&self.params), rays, &sorted, &mut paths),
+                IndexBinds::Grid => photon::gather(t, &self.params, &HashGrid::new(&self.params), rays, &sorted, &mut paths, &mut points),
                 IndexBinds::Kd { nodes, leaves } => {
                     let index = KdCells { nodes: nodes.host(), leaves: leaves.host(), cells: self.params.cells };
-                    photon::gather(t, &self.params, &index, rays, &sorted, &mut paths)
+                    photon::gather(t, &self.params, &index, rays, &sorted, &mut paths, &mut points)
                 }
+            }
+        }
+    }
+}
+
+/// The workgroup counts of an indirect dispatch over the `counts[0]` items an earlier pass
+/// counted (`kernel::dispatch_args`), for `Runtime::dispatch_indirect`; one item.
+pub struct DispatchArgs<'a> {
+    /// Element 0: the items.
+    pub counts: &'a Buffer<u32>,
+    /// Written: element 0, the workgroup counts (x, y, 1).
+    pub args: &'a Buffer<[u32; 3]>,
+}
+
+impl Kernel for DispatchArgs<'_> {
+    fn entry(&self) -> Cow<'static, str> {
+        "dispatch_args".into()
+    }
+    fn params(&self) -> &[u8] {
+        &[]
+    }
+    fn bindings(&self) -> Vec<Bind<'_>> {
+        vec![read("counts", self.counts), write("args", self.args)]
+    }
+    fn threads(&self) -> u32 {
+        1
+    }
+    fn run(&self, t: u32) {
+        // SAFETY: called by the native runtime during the dispatch of this pass, which holds
+        // its bindings; its one item writes args[0].
+        unsafe {
+            if t == 0 {
+                kdray_shared::kernel::Store::store(&mut self.args.host_store(), 0, kdray_shared::kernel::dispatch_args(self.counts.host()[0]));
             }
         }
     }
@@ -1125,7 +1164,7 @@ where
         let (tris, lights, materials) = (k.scene.tris.host(), k.lights.host(), k.materials.host());
         let (mut photons, mut counter) = (k.photons.host_store(), k.counter.host_store());
         for t in ts {
-            photon::trace_photon::<M, HostStore<'a, Photon>, HostStore<'a, u32>>(t, p, &accel, &tris, lights, materials, &mut photons, &mut counter)
+            photon::trace_photons::<M, HostStore<'a, Photon>, HostStore<'a, u32>>(t, p, &accel, &tris, lights, materials, &mut photons, &mut counter)
         }
     }
 }
@@ -1138,7 +1177,8 @@ impl<'s> WithTraversal for PickPhotons<'s> {
     }
 }
 
-/// Whole photon paths, emission to absorption, one photon per thread (`photon::trace_photon`):
+/// Whole photon paths, emission to absorption (`photon::trace_photons`): one photon per thread,
+/// or `params.stride` threads each tracing its share, a new photon as soon as one is absorbed;
 /// brute force, a kd traversal or the BVH, one ray at a time.
 pub struct TracePhotons<'a> {
     /// The dispatch's photons, photons per pass, seed, lights, bounce limit, record capacity and
@@ -1198,7 +1238,10 @@ impl Kernel for TracePhotons<'_> {
         b
     }
     fn threads(&self) -> u32 {
-        self.params.count
+        match self.params.stride {
+            0 => self.params.count,
+            s => s.min(self.params.count),
+        }
     }
     fn run(&self, t: u32) {
         self.run_many(t..t + 1)

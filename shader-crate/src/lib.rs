@@ -37,7 +37,7 @@ pub use sort::*;
 #[cfg(feature = "photon")]
 pub use photon::*;
 
-use kdray_shared::kernel::AtomicStore;
+use kdray_shared::kernel::{AtomicStore, Store};
 use kdray_shared::parts::Parts;
 use spirv_std::glam::UVec3;
 
@@ -62,7 +62,7 @@ pub fn bvh_view<'a>(_bounds: kdray_shared::aabb::Aabb, _tris: Parts<'a, kdray_sh
 }
 
 /// Threads per workgroup (`#[spirv(compute(threads(64)))]` on every entry point).
-pub const WORKGROUP: u32 = 64;
+pub use kdray_shared::kernel::WORKGROUP;
 
 /// The work item of invocation `id` in a grid of `groups` workgroups.
 #[inline(always)]
@@ -74,6 +74,23 @@ pub fn item(id: UVec3, groups: UVec3) -> u32 {
 /// every invocation of a dispatch; device scope would need an extra Vulkan memory-model
 /// capability).
 pub struct Atomics<'a>(pub &'a mut [u32]);
+
+/// Plain loads and stores at elements no other item adds to (a list whose count the items
+/// take slots from atomically: `photon::gather`'s points).
+impl Store<u32> for Atomics<'_> {
+    #[inline(always)]
+    fn load(&self, i: usize) -> u32 {
+        self.0[i]
+    }
+    #[inline(always)]
+    fn store(&mut self, i: usize, v: u32) {
+        self.0[i] = v;
+    }
+    #[inline(always)]
+    fn len(&self) -> usize {
+        self.0.len()
+    }
+}
 
 impl AtomicStore for Atomics<'_> {
     #[inline(always)]

@@ -103,9 +103,10 @@ pub fn gather_grid(
     #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] powers: &[u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] offsets: &[u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] paths: &mut [PathState],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] points: &mut [u32],
 ) {
     let sorted = SortedPhotons { words, powers, offsets };
-    photon::gather(crate::item(id, groups), params, &HashGrid::new(params), rays, &sorted, paths);
+    photon::gather(crate::item(id, groups), params, &HashGrid::new(params), rays, &sorted, paths, &mut Atomics(points));
 }
 
 #[spirv(compute(threads(64)))]
@@ -120,13 +121,27 @@ pub fn gather_kd(
     #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] nodes: &[KdNode],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] leaves: &[LeafCells],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] paths: &mut [PathState],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] points: &mut [u32],
 ) {
     let index = KdCells { nodes, leaves, cells: params.cells };
     let sorted = SortedPhotons { words, powers, offsets };
-    photon::gather(crate::item(id, groups), params, &index, rays, &sorted, paths);
+    photon::gather(crate::item(id, groups), params, &index, rays, &sorted, paths, &mut Atomics(points));
 }
 
-/// One entry point running `photon::trace_photon::<$m>` (a photon from the light to its
+/// The workgroup counts of an indirect dispatch over the `counts[0]` items a pass before
+/// counted (`kernel::dispatch_args`; one item).
+#[spirv(compute(threads(64)))]
+pub fn dispatch_args(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] counts: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] args: &mut [[u32; 3]],
+) {
+    if id.x == 0 && id.y == 0 {
+        args[0] = kdray_shared::kernel::dispatch_args(counts[0]);
+    }
+}
+
+/// One entry point running `photon::trace_photons::<$m>` (photons from the light to their
 /// absorption per thread); `$a`, `$b` are the structure's two buffers (kd: `nodes`, `prims`;
 /// BVH: `bvh`, `bvh_tris`) and `$view` makes the structure's view of them.
 macro_rules! photon_paths {
@@ -155,7 +170,7 @@ macro_rules! photon_paths {
             let tris = parts(split_tris, tris, tris1, tris2);
             let (a, b) = (parts(split[0], $a, $a1, $a2), parts(split[1], $b, $b1, $b2));
             let accel = crate::$view(Aabb { min: params.bounds_min, max: params.bounds_max }, tris, a, b);
-            photon::trace_photon::<$m, _, _>(crate::item(id, groups), params, &accel, &tris, lights, materials, photons, &mut Atomics(counter));
+            photon::trace_photons::<$m, _, _>(crate::item(id, groups), params, &accel, &tris, lights, materials, photons, &mut Atomics(counter));
         }
     };
 }

@@ -75,3 +75,19 @@ impl AtomicStore for [u32] {
         old
     }
 }
+
+/// Threads per workgroup of every entry point (`#[spirv(compute(threads(64)))]`).
+pub const WORKGROUP: u32 = 64;
+/// Workgroups per grid dimension that every Vulkan device offers (and wgpu's default limit).
+pub const MAX_GROUPS: u32 = 65_535;
+
+/// The workgroup counts (x, y, 1) of an indirect dispatch of `items` items, as the host
+/// dispatches directly: up to `MAX_GROUPS` along x, then rows along y (items are numbered
+/// x + y · width). `[0, 0, 1]` for none.
+#[inline(always)]
+pub fn dispatch_args(items: u32) -> [u32; 3] {
+    let groups = items.div_ceil(WORKGROUP);
+    let x = if groups < MAX_GROUPS { groups } else { MAX_GROUPS };
+    let y = if x == 0 { 0 } else { groups.div_ceil(x) };
+    [x, y, 1]
+}

@@ -33,7 +33,7 @@ use crate::math::{
 use crate::parts::Parts;
 use crate::pod::{
     Hit, IndexParams, LeafCells, Light, Material, PathState, Photon, PhotonParams, PhotonPath, SortParams, Triangle, FILTER_CONE, INDEX_KD,
-    FILTER_EPANECHNIKOV, GATHER_EDGES, GATHER_SKIP_DIRECT, LIGHT_POINT, LIGHT_SPOT, MAT_MIRROR, PATH_GATHER, PHOTON_ACTIVE, PHOTON_SPECULAR_ONLY,
+    FILTER_EPANECHNIKOV, GATHER_EDGES, GATHER_LISTED, LIGHT_POINT, LIGHT_SPOT, MAT_MIRROR, PATH_GATHER, PHOTON_ACTIVE, PHOTON_SPECULAR_ONLY,
     PHOTON_STORE_DIRECT,
 };
 use crate::ray::Ray;
@@ -371,13 +371,18 @@ pub fn bounce<R, S, O, C>(
     paths.store(k, path);
 }
 
-/// Photon `i` of the dispatch from the light to its absorption in one item: `emit`, then per
-/// bounce (up to `p.max_bounces`) a closest-hit query by `M` and `bounce_step` — the same
-/// photons as the schedule of separate passes, without a dispatch per bounce or state in
-/// buffers between them.
+/// The photons of item `i` of the dispatch, each from the light to its absorption: photons
+/// `i`, `i + s`, `i + 2s`, … of the dispatch (`s`: `p.stride`, or `p.count` when that is 0,
+/// one photon per item), the next one emitted as soon as the last is absorbed. A photon is
+/// `emit`, then per bounce (up to `p.max_bounces`) a closest-hit query by `M` and
+/// `bounce_step` — the same photons as the schedule of separate passes, without a dispatch per
+/// bounce or state in buffers between them. Starting the next photon at once keeps a SIMD
+/// group's lanes busy: with one photon per item a group runs as long as its longest path
+/// (Russian roulette makes path lengths geometric), its other lanes idle. Bounded: at most
+/// `p.max_bounces + 1` steps per photon and ⌈count / s⌉ photons per item.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-pub fn trace_photon<M: Method, O: Store<Photon> + ?Sized, C: AtomicStore + ?Sized>(
+pub fn trace_photons<M: Method, O: Store<Photon> + ?Sized, C: AtomicStore + ?Sized>(
     i: u32,
     p: &PhotonParams,
     accel: &M::Accel<'_>,
@@ -387,19 +392,38 @@ pub fn trace_photon<M: Method, O: Store<Photon> + ?Sized, C: AtomicStore + ?Size
     photons: &mut O,
     counter: &mut C,
 ) {
-    if i >= p.count {
-        return;
-    }
-    let photon = p.first + i;
-    let (mut ray, power) = emit_photon(lights, p.light_count, p.emitted, emission_numbers(p, photon));
-    let mut path = PhotonPath { power, flags: if ray.is_valid() { PHOTON_ACTIVE | PHOTON_SPECULAR_ONLY } else { 0 } };
+    let stride = if p.stride == 0 { p.count } else { p.stride };
+    // Items past the stride (the rest of the last workgroup) trace nothing.
+    let mut next = if i < stride { i } else { p.count };
+    let mut photon = 0;
     let mut bounce = 0;
-    while bounce <= p.max_bounces && path.flags & PHOTON_ACTIVE != 0 {
+    let mut ray = NO_RAY;
+    let mut path = PhotonPath { power: [0.0; 3], flags: 0 };
+    loop {
+        if path.flags & PHOTON_ACTIVE == 0 {
+            if next >= p.count {
+                break;
+            }
+            photon = p.first + next;
+            // next + stride, without overflowing past count.
+            next = if stride.max(1) >= p.count - next { p.count } else { next + stride };
+            let (r, power) = emit_photon(lights, p.light_count, p.emitted, emission_numbers(p, photon));
+            ray = r;
+            path = PhotonPath { power, flags: if ray.is_valid() { PHOTON_ACTIVE | PHOTON_SPECULAR_ONLY } else { 0 } };
+            bounce = 0;
+            if !ray.is_valid() {
+                continue;
+            }
+        }
         let mut q = Closest::new(&ray);
         M::find(accel, &ray, &mut q);
         let hit = q.answer();
         bounce_step(p, bounce, photon, &mut ray, &hit, tris, materials, &mut path, photons, counter);
         bounce += 1;
+        if bounce > p.max_bounces {
+            // `bounce_step` ends every path at its last bounce; kept for the bound.
+            path.flags = 0;
+        }
     }
 }
 
@@ -759,14 +783,13 @@ pub fn place<W: Store<PhotonWord> + ?Sized, P: Store<u32> + ?Sized>(
 // ---------------------------------------------------------------------------------------------
 // Gather
 
-/// Sums the photons of visited cells within `r2` of `x` on the side `n` (leaving out direct
-/// ones under `skip_direct`), and counts those within `r2` on surfaces of other orientations.
+/// Sums the photons of visited cells within `r2` of `x` on the side `n`, and counts those
+/// within `r2` on surfaces of other orientations.
 struct Sum {
     x: [f32; 3],
     n: [f32; 3],
     r2: f32,
     filter: u32,
-    skip_direct: bool,
     sum: [f32; 3],
     found: u32,
     other: u32,
@@ -781,7 +804,7 @@ impl Sum {
         if d2 <= self.r2 {
             if dot3(decode_oct(w.w & 0xffff, 8), self.n) <= 0.5 {
                 self.other += 1;
-            } else if !(self.skip_direct && w.w & DIRECT_BIT != 0) {
+            } else {
                 let k = if self.filter == FILTER_CONE {
                     3.0 * (1.0 - crate::math::sqrt(d2 / self.r2))
                 } else if self.filter == FILTER_EPANECHNIKOV {
@@ -822,34 +845,42 @@ pub struct Estimate {
 }
 
 /// Irradiance at `x` (normal `n` on the viewing side) from one map: Σ w·Φ / (π r²) over the
-/// photons within the map's radius on the same side, direct ones left out under
-/// `GATHER_SKIP_DIRECT`.
+/// photons within the map's radius on the same side.
 #[inline(always)]
 pub fn irradiance<I: PhotonIndex>(index: &I, p: &IndexParams, sorted: &SortedPhotons, x: [f32; 3], n: [f32; 3], map: u32) -> Estimate {
     let r = p.radius[map as usize];
-    let skip_direct = p.gather_flags & GATHER_SKIP_DIRECT != 0;
-    let mut s = Sum { x, n, r2: r * r, filter: p.filter, skip_direct, sum: [0.0; 3], found: 0, other: 0 };
+    let mut s = Sum { x, n, r2: r * r, filter: p.filter, sum: [0.0; 3], found: 0, other: 0 };
     index.visit(x, r, map, sorted, &mut s);
     Estimate { irradiance: scale3(s.sum, 1.0 / (core::f32::consts::PI * r * r)), found: s.found, other: s.other }
 }
 
-/// Path `i`: if it ended at a gather point, adds the reflected radiance the photons of maps
-/// `p.first_map..p.maps` give (throughput already holds albedo/π) to its radiance (the film
-/// then adds the paths up). Under `GATHER_EDGES` a point near an edge takes the caustic map
-/// only and stays a gather point (for the final gather); every other point stops being one.
+/// Path `i` (or, under `GATHER_LISTED`, the `i`-th path listed in `points`): if it ended at a
+/// gather point, adds the reflected radiance the photons of maps `p.first_map..p.maps` give
+/// (throughput already holds albedo/π) to its radiance (the film then adds the paths up).
+/// Under `GATHER_EDGES` a point near an edge takes the caustic map only, stays a gather point
+/// (for the final gather) and is listed in `points` (its count in `points[0]`, cleared
+/// before; a list without room for every path, one element, lists none); every other point
+/// stops being one.
 #[inline(always)]
-pub fn gather<I: PhotonIndex, P: Store<PathState> + ?Sized>(
+pub fn gather<I: PhotonIndex, P: Store<PathState> + ?Sized, L: Store<u32> + AtomicStore + ?Sized>(
     i: u32,
     p: &IndexParams,
     index: &I,
     rays: &[Ray],
     sorted: &SortedPhotons,
     paths: &mut P,
+    points: &mut L,
 ) {
     if i >= p.count {
         return;
     }
-    let k = i as usize;
+    let mut k = i as usize;
+    if p.gather_flags & GATHER_LISTED != 0 {
+        if i >= points.load(0) {
+            return;
+        }
+        k = points.load(1 + i as usize) as usize;
+    }
     let mut path = paths.load(k);
     if path.flags & PATH_GATHER != 0 {
         let g = rays[k];
@@ -867,8 +898,16 @@ pub fn gather<I: PhotonIndex, P: Store<PathState> + ?Sized>(
             map += 1;
         }
         path.radiance = add3(path.radiance, mul3(path.throughput, e));
-        if edges && !near_edge {
-            path.flags &= !PATH_GATHER;
+        if edges {
+            if near_edge {
+                let slot = points.atomic_add(0, 1) as usize;
+                // A list without room (none kept: the second gather runs over every path).
+                if 1 + slot < points.len() {
+                    points.store(1 + slot, k as u32);
+                }
+            } else {
+                path.flags &= !PATH_GATHER;
+            }
         }
         paths.store(k, path);
     }

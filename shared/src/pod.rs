@@ -368,8 +368,9 @@ pub struct PhotonParams {
     pub sequence: u32,
     /// Maximum corner of the scene box.
     pub bounds_max: [f32; 3],
-    /// Padding to a 16-byte multiple.
-    pub _pad2: u32,
+    /// Items of a whole-path dispatch (`photon::trace_photons`): item i traces photons i,
+    /// i + stride, … of the dispatch; 0: one photon per item (`count` items).
+    pub stride: u32,
 }
 
 /// `PhotonPath::flags`: the photon is still travelling.
@@ -443,9 +444,6 @@ pub struct IndexParams {
     pub gather_flags: u32,
 }
 
-/// `IndexParams::gather_flags`: photons that came straight from a light do not count (shadow
-/// rays have counted their light).
-pub const GATHER_SKIP_DIRECT: u32 = 1;
 /// `IndexParams::gather_flags`: final gathering near edges only. A gather point whose disc
 /// holds a photon of the global map on a surface of another orientation (normals more than 60°
 /// apart: a corner or an edge within the radius, where the disc reaches past its surface and
@@ -453,6 +451,11 @@ pub const GATHER_SKIP_DIRECT: u32 = 1;
 /// only the caustic map and stays a gather point, to be resumed by the final gather; any other
 /// takes every map and ends.
 pub const GATHER_EDGES: u32 = 2;
+/// `IndexParams::gather_flags`: the gather's items are the paths listed in its `points`
+/// buffer (item i gathers for path `points[1 + i]`, i < `points[0]`), as the first gather of
+/// `GATHER_EDGES` listed them: the final gather's second gathers run as a dense dispatch of the
+/// points near edges (an indirect one, `kernel::dispatch_args`) instead of over every path.
+pub const GATHER_LISTED: u32 = 4;
 
 /// A kd-tree leaf's cells in the photon index (`INDEX_KD`), one per node (interior nodes'
 /// have `dims` 0): the leaf's box, its first cell and its subdivision (`dims` = nx | ny << 10 |

@@ -11,10 +11,10 @@
 //! direction with Russian roulette by albedo (path tracing), or ends as a gather point for the
 //! photon map (`RENDER_GATHER`). Emission a path hits counts after the camera or a specular
 //! vertex only; after a diffuse vertex the shadow ray has counted it. A final gather resumes a
-//! path from its gather point (`render::resume`, `RENDER_CONTINUE`) to a second one, where the
-//! photon map gives all the light (`RENDER_PHOTON_DIRECT`); emission it meets counts nowhere
-//! on the way (direct light and caustics were counted at the first point). The split lets each
-//! query run as its own kernel.
+//! path from its gather point (`render::resume`, `RENDER_CONTINUE`) to a second one, which
+//! takes direct light by its own shadow ray and the rest from the photon maps; emission it
+//! meets counts nowhere on the way (direct light and caustics were counted at the first
+//! point). The split lets each query run as its own kernel.
 //!
 //! Glass is colourless and the radiance scaling by η² at refraction is left out (it cancels
 //! for paths that enter and leave a closed object).

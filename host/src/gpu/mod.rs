@@ -74,6 +74,11 @@ pub(crate) struct ProfileRecording {
 struct Profile {
     pending: Vec<(wgpu::Buffer, Vec<String>)>,
     totals: HashMap<String, (u64, f64)>,
+    /// Profiled submissions read, the ms from each one's first timed pass's start to its last
+    /// one's end (summed), and the ms from one's end to the next one's start (summed).
+    submissions: (u64, f64, f64),
+    /// The end of the last submission read (ticks).
+    last_end: Option<u64>,
 }
 
 /// Largest push-constant block a kernel family may use (Vulkan guarantees 128 bytes).
@@ -892,10 +897,19 @@ impl Gpu {
             let ticks: Vec<u64> = bytemuck::pod_collect_to_vec(&view);
             drop(view);
             let mut p = p.lock().expect("profile");
+            let passes = names.len();
             for (i, n) in names.into_iter().enumerate() {
                 let e = p.totals.entry(n).or_default();
                 e.0 += 1;
                 e.1 += ticks[2 * i + 1].wrapping_sub(ticks[2 * i]) as f64 * period;
+            }
+            if passes > 0 {
+                let (start, end) = (ticks[0], ticks[2 * passes - 1]);
+                let idle = p.last_end.map_or(0.0, |e| start.saturating_sub(e) as f64 * period);
+                p.submissions.0 += 1;
+                p.submissions.1 += end.wrapping_sub(start) as f64 * period;
+                p.submissions.2 += idle;
+                p.last_end = Some(end);
             }
         }
     }
@@ -920,6 +934,13 @@ impl Drop for Gpu {
         eprintln!("{:<34} {:>10} {:>12} {:>10} {:>7}", "entry point", "dispatches", "total ms", "mean us", "share");
         for (name, n, ms) in rows {
             eprintln!("{name:<34} {n:>10} {ms:>12.3} {:>10.2} {:>6.1}%", ms * 1e3 / n as f64, 100.0 * ms / total.max(1e-12));
+        }
+        if let Some(p) = &self.profile {
+            let (n, span, idle) = p.lock().expect("profile").submissions;
+            eprintln!(
+                "{n} submissions: {span:.3} ms from each one's first pass to its last ({:.3} ms of it between passes), {idle:.3} ms between submissions",
+                span - total
+            );
         }
     }
 }

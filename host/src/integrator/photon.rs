@@ -12,7 +12,7 @@
 //! 4. **gather** — the photons within the pass's radius at each gather point, added to the
 //!    film. With final gathering (`FinalGather`) the first gather point takes the caustic map
 //!    only (everywhere, or near edges only); the paths then resume by one diffuse bounce to a
-//!    second point, where every photon (direct ones included) gives the light.
+//!    second point, which takes direct light by a shadow ray and the rest from the maps.
 //!
 //! The radius shrinks from pass to pass, r²ᵢ₊₁ = r²ᵢ (i + α)/(i + 1), so the average of the
 //! passes converges to the right answer; memory does not grow with the number of passes. A
@@ -23,7 +23,7 @@ use super::path::{self, FrameBuffers, PathOptions};
 use super::{Progress, RenderOutput, SamplerKind};
 use crate::accel::Accel;
 use crate::kdtree::KdTreeData;
-use crate::kernels::{EmitPhotons, Film, Gather, IndexBinds, PhotonBounce, PhotonKeys, PlacePhotons, TracePhotons};
+use crate::kernels::{DispatchArgs, EmitPhotons, Film, Gather, IndexBinds, PhotonBounce, PhotonKeys, PlacePhotons, TracePhotons};
 use crate::runtime::{cast, Buffer, Kernel, Pending, Runtime};
 use crate::sort::CountingSort;
 use crate::tracer::{LeafLists, Tracer};
@@ -33,8 +33,8 @@ use kdray_shared::photon::PhotonWord;
 use kdray_shared::query::Closest;
 use kdray_shared::rng::pcg_hash;
 use kdray_shared::{
-    Camera, Hit, IndexParams, LeafCells, Photon, PhotonParams, PhotonPath, Ray, RenderParams, FILTER_CONSTANT, GATHER_EDGES, GATHER_SKIP_DIRECT, INDEX_GRID, INDEX_KD,
-    PHOTON_SOBOL, PHOTON_STORE_DIRECT, RENDER_CONTINUE, RENDER_GATHER, RENDER_JITTER, RENDER_PHOTON_DIRECT,
+    Camera, Hit, IndexParams, LeafCells, Photon, PhotonParams, PhotonPath, Ray, RenderParams, FILTER_CONSTANT, GATHER_EDGES, INDEX_GRID, INDEX_KD,
+    GATHER_LISTED, PHOTON_SOBOL, PHOTON_STORE_DIRECT, RENDER_CONTINUE, RENDER_GATHER, RENDER_JITTER, RENDER_PHOTON_DIRECT,
 };
 use std::collections::VecDeque;
 use std::time::Instant;
@@ -58,14 +58,19 @@ pub enum IndexKind {
 /// lose accuracy in the glass-sphere box (caustic photons bunch up).
 pub const COHERENT_SPREAD: f32 = 0.1;
 
+/// Threads of a whole-path photon dispatch by default (`PhotonOptions::photon_threads`).
+pub const PHOTON_THREADS: u32 = 1 << 17;
+
 /// Where the eye paths' first diffuse points take their indirect light from.
 ///
 /// A final gather takes, at the first diffuse point, direct light by a shadow ray and caustics
-/// from the caustic map, then one cosine-weighted bounce to a second diffuse point, where the
-/// photon map (every photon, direct ones included) gives all the light: the density
-/// estimate's bias, worst where the gather disc reaches past its surface at corners and edges,
-/// is averaged over a hemisphere instead of seen directly, at the price of the bounce's noise
-/// and an incoherent gather.
+/// from the caustic map, then one cosine-weighted bounce to a second diffuse point, which takes
+/// direct light by a shadow ray too and the rest from the photon maps: the density estimate's
+/// bias, worst where the gather disc reaches past its surface at corners and edges, is
+/// averaged over a hemisphere instead of seen directly, at the price of the bounce's noise and
+/// an incoherent gather. (The maps hold no photons straight from the lights, as in every mode
+/// but `photon_direct`: a second point's direct light by a shadow ray instead of direct
+/// photons keeps the maps — and every gather's loop — to the indirect photons.)
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub enum FinalGather {
     /// The photon map read at the first diffuse point (direct visualisation, the paper's).
@@ -113,12 +118,20 @@ pub struct PhotonOptions {
     pub photon_direct: bool,
     /// Final gathering, everywhere, near edges only, or not at all (`FinalGather`).
     pub final_gather: FinalGather,
+    /// With `FinalGather::Edges`: the second gather runs over a list of the points near edges
+    /// (an indirect dispatch, `GatherPoints`) instead of over every eye path (the same image;
+    /// off only to measure the difference).
+    pub list_points: bool,
     /// `FILTER_*` of the gather.
     pub filter: u32,
     /// Photon bounces traced.
     pub photon_bounces: u32,
     /// Whole photon paths in one kernel where there is one (else a pass per bounce).
     pub fused: bool,
+    /// Threads of a whole-path photon dispatch (`PhotonParams::stride`): each traces its share
+    /// of the photons, the next as soon as one is absorbed (`PHOTON_THREADS` by default); 0:
+    /// one photon per thread.
+    pub photon_threads: u32,
     /// Specular bounces of eye paths.
     pub eye_bounces: u32,
     /// Eye samples per pixel and pass (all gather from the pass's photons).
@@ -130,6 +143,8 @@ pub struct PhotonOptions {
     pub sampler: SamplerKind,
     /// Where the photons' numbers come from (with `Sobol`, the coherent groups' emission
     /// samples and the photons' bounces run on over the passes as sequences of the render).
+    /// Independent by default: Sobol photons gave no less error per pass and cost 15 % of the
+    /// photon kernel's time (H200, docs/gpu-runs/2026-12-03-photon-direct-nee-h200.md).
     pub photon_sampler: SamplerKind,
 }
 
@@ -148,14 +163,16 @@ impl Default for PhotonOptions {
             spread: COHERENT_SPREAD,
             photon_direct: false,
             final_gather: FinalGather::Edges,
+            list_points: true,
             filter: FILTER_CONSTANT,
             photon_bounces: 16,
             fused: true,
+            photon_threads: PHOTON_THREADS,
             eye_bounces: 16,
             eye_samples: 4,
             seed: 1,
             sampler: SamplerKind::Sobol,
-            photon_sampler: SamplerKind::Sobol,
+            photon_sampler: SamplerKind::Independent,
         }
     }
 }
@@ -392,7 +409,7 @@ impl<'t> PhotonMap<'t> {
             light_count: self.t.light_count,
             bounce: 0,
             max_bounces: self.o.photon_bounces,
-            flags: if self.o.photon_direct || self.o.final_gather != FinalGather::Off { PHOTON_STORE_DIRECT } else { 0 }
+            flags: if self.o.photon_direct { PHOTON_STORE_DIRECT } else { 0 }
                 | if self.o.photon_sampler == SamplerKind::Sobol { PHOTON_SOBOL } else { 0 },
             pass,
             sequence: pcg_hash(self.o.seed ^ 0x9407_0145),
@@ -443,7 +460,7 @@ impl<'t> PhotonMap<'t> {
         while first < self.o.photons {
             let count = (self.batch as u32).min(self.o.photons - first);
             let p = PhotonParams { count, first, ..base };
-            if let Some(k) = self.fused(p) {
+            if let Some(k) = self.fused(PhotonParams { stride: self.o.photon_threads.min(count), ..p }) {
                 rt.dispatch(c, &k)?;
                 first += count;
                 continue;
@@ -530,23 +547,30 @@ impl<'t> PhotonMap<'t> {
     }
 
     /// The gather pass of pass `pass` over `count` eye paths, every map.
-    pub fn gather<'a>(&'a self, pass: u32, count: u32, fb: &'a FrameBuffers) -> Gather<'a> {
-        self.gather_maps(pass, count, fb, 0)
+    pub fn gather<'a>(&'a self, pass: u32, count: u32, fb: &'a FrameBuffers, gp: &'a GatherPoints) -> Gather<'a> {
+        self.gather_maps(pass, count, fb, gp, 0)
     }
 
     /// The gather pass of pass `pass` over `count` eye paths, maps `first_map..` (1: the
     /// caustic map alone).
-    pub fn gather_maps<'a>(&'a self, pass: u32, count: u32, fb: &'a FrameBuffers, first_map: u32) -> Gather<'a> {
-        self.gather_with(IndexParams { first_map, ..self.index_params(pass, count) }, fb)
+    pub fn gather_maps<'a>(&'a self, pass: u32, count: u32, fb: &'a FrameBuffers, gp: &'a GatherPoints, first_map: u32) -> Gather<'a> {
+        self.gather_with(IndexParams { first_map, ..self.index_params(pass, count) }, fb, gp)
     }
 
-    /// The first gather of `FinalGather::Edges`: every map, direct photons left out, the points
-    /// near edges kept for the final gather (`GATHER_EDGES`).
-    pub fn gather_edges<'a>(&'a self, pass: u32, count: u32, fb: &'a FrameBuffers) -> Gather<'a> {
-        self.gather_with(IndexParams { gather_flags: GATHER_EDGES | GATHER_SKIP_DIRECT, ..self.index_params(pass, count) }, fb)
+    /// The first gather of `FinalGather::Edges`: every map, the points
+    /// near edges kept for the final gather (`GATHER_EDGES`) and listed in `gp` (cleared
+    /// before).
+    pub fn gather_edges<'a>(&'a self, pass: u32, count: u32, fb: &'a FrameBuffers, gp: &'a GatherPoints) -> Gather<'a> {
+        self.gather_with(IndexParams { gather_flags: GATHER_EDGES, ..self.index_params(pass, count) }, fb, gp)
     }
 
-    fn gather_with<'a>(&'a self, params: IndexParams, fb: &'a FrameBuffers) -> Gather<'a> {
+    /// The final gather's second gather over the points `gather_edges` listed in `gp` (every
+    /// map), dispatched indirectly (`GatherPoints::record_args` before).
+    pub fn gather_listed<'a>(&'a self, pass: u32, count: u32, fb: &'a FrameBuffers, gp: &'a GatherPoints) -> Gather<'a> {
+        self.gather_with(IndexParams { gather_flags: GATHER_LISTED, ..self.index_params(pass, count) }, fb, gp)
+    }
+
+    fn gather_with<'a>(&'a self, params: IndexParams, fb: &'a FrameBuffers, gp: &'a GatherPoints) -> Gather<'a> {
         Gather {
             params,
             index: self.index_binds(),
@@ -555,6 +579,7 @@ impl<'t> PhotonMap<'t> {
             powers: &self.sorted_powers,
             offsets: &self.sort.offsets,
             paths: &fb.paths,
+            points: &gp.points,
         }
     }
 
@@ -637,6 +662,33 @@ impl<'t> PhotonMap<'t> {
     }
 }
 
+/// The gather points near edges of a batch of eye paths (`FinalGather::Edges`): the first
+/// gather lists them, the final gather's second gather runs over the list alone — a dense,
+/// indirect dispatch instead of one over every path, most of whose lanes would idle.
+pub struct GatherPoints {
+    /// Element 0: the points listed; then the paths' indices.
+    pub points: Buffer<u32>,
+    /// The workgroup counts of a dispatch over them (`DispatchArgs`).
+    pub args: Buffer<[u32; 3]>,
+}
+
+impl GatherPoints {
+    /// Room for every path of a batch of `paths`.
+    pub fn new(t: &Tracer, paths: usize) -> Result<Self> {
+        Ok(GatherPoints { points: t.rt.alloc("gather points", paths + 1)?, args: t.rt.alloc("gather point dispatch", 1)? })
+    }
+
+    /// Records clearing the list (before the gather that fills it).
+    pub fn record_clear(&self, rt: &dyn Runtime, c: &mut crate::runtime::Commands) -> Result<()> {
+        rt.clear(c, self.points.raw())
+    }
+
+    /// Records the dispatch's workgroup counts from the list's length.
+    pub fn record_args(&self, rt: &dyn Runtime, c: &mut crate::runtime::Commands) -> Result<()> {
+        rt.dispatch(c, &DispatchArgs { counts: &self.points, args: &self.args })
+    }
+}
+
 /// Eye-path parameters of pass `pass`: `o.eye_samples` jittered samples per pixel, ending at
 /// gather points.
 pub fn eye_params(t: &Tracer, cam: &Camera, o: &PhotonOptions, first: usize, count: usize, pass: u32) -> RenderParams {
@@ -652,34 +704,47 @@ pub fn eye_params(t: &Tracer, cam: &Camera, o: &PhotonOptions, first: usize, cou
 }
 
 /// The final gather's parameters for the eye paths of `eye` (`eye_params`): resume from the
-/// gather points, their own random streams, all light from the photon map at the next
-/// diffuse point.
+/// gather points, their own random streams; at the next diffuse point direct light by a
+/// shadow ray, the rest from the photon maps.
 pub fn final_gather_params(eye: &RenderParams) -> RenderParams {
     // The eye pass's other flags (jitter) concern the camera rays, which a resumed path has
     // left behind.
-    RenderParams { seed: pcg_hash(eye.seed ^ 0xF17A_16A7), flags: RENDER_GATHER | RENDER_PHOTON_DIRECT | RENDER_CONTINUE, ..*eye }
+    RenderParams { seed: pcg_hash(eye.seed ^ 0xF17A_16A7), flags: RENDER_GATHER | RENDER_CONTINUE, ..*eye }
 }
 
 /// The eye passes and gathers of pass `pass` for the paths of `p` (`eye_params`), up to the
 /// film: eye paths to their first diffuse points and the gather there; with final gathering,
 /// the caustic map at the first point (near edges only: every map elsewhere), the paths
 /// resumed to a second point, and every map there.
-fn record_eye<'a>(c: &mut crate::runtime::Commands, map: &'a PhotonMap, p: &RenderParams, pass: u32, fb: &'a FrameBuffers) -> Result<()> {
+fn record_eye<'a>(c: &mut crate::runtime::Commands, map: &'a PhotonMap, p: &RenderParams, pass: u32, fb: &'a FrameBuffers, gp: &'a GatherPoints) -> Result<()> {
     let (t, rt) = (map.t, map.t.rt);
     for k in path::eye_passes(t, map.accel, p, fb, map.o.fused)? {
         rt.dispatch(c, k.as_ref())?;
     }
     match map.o.final_gather {
-        FinalGather::Off => return rt.dispatch(c, &map.gather(pass, p.count, fb) as &dyn Kernel),
-        FinalGather::Edges => rt.dispatch(c, &map.gather_edges(pass, p.count, fb) as &dyn Kernel)?,
-        FinalGather::All if map.maps > 1 => rt.dispatch(c, &map.gather_maps(pass, p.count, fb, 1) as &dyn Kernel)?,
+        FinalGather::Off => return rt.dispatch(c, &map.gather(pass, p.count, fb, gp) as &dyn Kernel),
+        FinalGather::Edges if map.o.list_points => {
+            gp.record_clear(rt, c)?;
+            rt.dispatch(c, &map.gather_edges(pass, p.count, fb, gp) as &dyn Kernel)?;
+        }
+        FinalGather::Edges => rt.dispatch(c, &map.gather_edges(pass, p.count, fb, gp) as &dyn Kernel)?,
+        FinalGather::All if map.maps > 1 => rt.dispatch(c, &map.gather_maps(pass, p.count, fb, gp, 1) as &dyn Kernel)?,
         FinalGather::All => {}
     }
     for k in path::eye_passes(t, map.accel, &final_gather_params(p), fb, map.o.fused)? {
         rt.dispatch(c, k.as_ref())?;
     }
-    rt.dispatch(c, &map.gather(pass, p.count, fb) as &dyn Kernel)
+    if map.o.final_gather == FinalGather::Edges && map.o.list_points {
+        gp.record_args(rt, c)?;
+        return rt.dispatch_indirect(c, &map.gather_listed(pass, p.count, fb, gp), &gp.args, 0);
+    }
+    rt.dispatch(c, &map.gather(pass, p.count, fb, gp) as &dyn Kernel)
 }
+
+/// Passes submitted ahead of the host's check of their photon counts. With two the device
+/// could wait on the host; three kept it busy (H200, Cornell box 256 × 4 passes: 0.94 → 0.93 s;
+/// four: 0.92 s, and an overflow found one pass later).
+const IN_FLIGHT: usize = 3;
 
 /// Renders `cam`'s image by progressive photon mapping; `progress` counts passes.
 ///
@@ -702,6 +767,19 @@ pub fn render(map: &mut PhotonMap, cam: &Camera, progress: &dyn Progress) -> Res
     let b = (t.batch_size(accel, n * e) / e).max(1);
     let batches: Vec<(usize, usize)> = (0..n).step_by(b).map(|f| (f, b.min(n - f))).collect();
     let fbs: Vec<FrameBuffers> = batches.iter().map(|&(_, c)| FrameBuffers::new(t, accel, c * e)).collect::<Result<_>>()?;
+    let gps: Vec<GatherPoints> = match map.o.final_gather {
+        FinalGather::Edges if map.o.list_points => batches.iter().map(|&(_, c)| GatherPoints::new(t, c * e)).collect::<Result<_>>()?,
+        _ => (0..batches.len()).map(|_| GatherPoints::new(t, 0)).collect::<Result<_>>()?,
+    };
+    if !rt.is_native() {
+        // A device creates a kernel's pipeline when a pass first records it (the driver
+        // compiles: 0.12–0.13 s for a pass's eight kernels on the H200, cached or not). Pass 0
+        // recorded once and dropped unsubmitted makes them ready before the render's clock
+        // (and its time limit) starts; the caller's own clock still sees the cost. (Natively,
+        // recording runs the kernels.)
+        let mut c = rt.begin();
+        record_pass(map, cam, 0, &batches, &fbs, &gps, &mut c)?;
+    }
     progress.start(map.o.passes as u64);
     let start = Instant::now();
     let mut stats = PhotonStats::default();
@@ -718,9 +796,9 @@ pub fn render(map: &mut PhotonMap, cam: &Camera, progress: &dyn Progress) -> Res
         }
         None => Err(e),
     };
-    // The next pass to submit; the passes submitted and not yet checked (at most two: the
-    // device runs one while the host waits for the other's count), oldest first; whether the
-    // render is complete once they are checked.
+    // The next pass to submit; the passes submitted and not yet checked (at most `IN_FLIGHT`:
+    // the device runs one while the host waits for an earlier one's count), oldest first;
+    // whether the render is complete once they are checked.
     let mut next = 0u32;
     let mut flight: VecDeque<(u32, Pending)> = VecDeque::new();
     let mut done = false;
@@ -729,13 +807,13 @@ pub fn render(map: &mut PhotonMap, cam: &Camera, progress: &dyn Progress) -> Res
         // A checkpoint reads the film of checked passes alone: nothing new goes in flight
         // while one is due.
         let checkpoint_due = stats.passes > 0 && secs - saved_at >= map.o.checkpoint_seconds;
-        if !done && next < map.o.passes && flight.len() < 2 && !(checkpoint_due && !flight.is_empty()) {
-            match submit_pass(map, cam, next, &batches, &fbs) {
+        if !done && next < map.o.passes && flight.len() < IN_FLIGHT && !(checkpoint_due && !flight.is_empty()) {
+            match submit_pass(map, cam, next, &batches, &fbs, &gps) {
                 Ok(p) => flight.push_back((next, p)),
                 Err(e) => return fail(saved, format!("pass {next} failed"), e),
             }
             next += 1;
-            if flight.len() < 2 && !checkpoint_due && next < map.o.passes {
+            if flight.len() < IN_FLIGHT && !checkpoint_due && next < map.o.passes {
                 continue;
             }
         }
@@ -807,20 +885,34 @@ fn restore(t: &Tracer, fbs: &[FrameBuffers], saved: Option<&Checkpoint>) -> Resu
 
 /// Submits pass `pass` whole: photons traced and indexed, every batch's eye samples gathered
 /// into its film, and the photons stored read back (to check against the records' capacity).
-fn submit_pass(map: &mut PhotonMap, cam: &Camera, pass: u32, batches: &[(usize, usize)], fbs: &[FrameBuffers]) -> Result<Pending> {
-    let (t, rt) = (map.t, map.t.rt);
-    map.prepare_index(pass)?;
+fn submit_pass(map: &mut PhotonMap, cam: &Camera, pass: u32, batches: &[(usize, usize)], fbs: &[FrameBuffers], gps: &[GatherPoints]) -> Result<Pending> {
+    let rt = map.t.rt;
     let mut c = rt.begin();
-    map.record_trace(&mut c, pass)?;
-    map.record_index(&mut c, pass)?;
-    for (&(first, count), fb) in batches.iter().zip(fbs) {
-        let p = eye_params(t, cam, &map.o, first, count, pass);
-        record_eye(&mut c, map, &p, pass, fb)?;
-        rt.dispatch(&mut c, &Film { params: p, paths: &fb.paths, radiance: &fb.film.radiance })?;
-    }
-    let pending = rt.read_back_of(&mut c, &map.counter, 1)?;
+    let pending = record_pass(map, cam, pass, batches, fbs, gps, &mut c)?;
     rt.submit(c)?;
     Ok(pending)
+}
+
+/// Records pass `pass` whole into `c` (`submit_pass`).
+fn record_pass(
+    map: &mut PhotonMap,
+    cam: &Camera,
+    pass: u32,
+    batches: &[(usize, usize)],
+    fbs: &[FrameBuffers],
+    gps: &[GatherPoints],
+    c: &mut crate::runtime::Commands,
+) -> Result<Pending> {
+    let (t, rt) = (map.t, map.t.rt);
+    map.prepare_index(pass)?;
+    map.record_trace(c, pass)?;
+    map.record_index(c, pass)?;
+    for ((&(first, count), fb), gp) in batches.iter().zip(fbs).zip(gps) {
+        let p = eye_params(t, cam, &map.o, first, count, pass);
+        record_eye(c, map, &p, pass, fb, gp)?;
+        rt.dispatch(c, &Film { params: p, paths: &fb.paths, radiance: &fb.film.radiance })?;
+    }
+    rt.read_back_of(c, &map.counter, 1)
 }
 
 /// The image so far, and the film's sums per batch (`path::read_films`).

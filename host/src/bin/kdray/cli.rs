@@ -174,10 +174,11 @@ pub enum Command {
         /// or `independent` (plain Monte Carlo).
         #[arg(long, value_enum, default_value = "sobol")]
         sampler: SamplerArg,
-        /// Where the photons' numbers come from (photon): `sobol` (the render's scrambled
-        /// Sobol sequences over the coherent groups' emission and the photons' bounces,
-        /// continued over the passes) or `independent`.
-        #[arg(long, value_enum, default_value = "sobol")]
+        /// Where the photons' numbers come from (photon): `independent` (the default: as
+        /// accurate per pass as Sobol's and cheaper, docs/gpu-runs/2026-12-03-photon-direct-nee-h200.md)
+        /// or `sobol` (the render's scrambled Sobol sequences over the coherent groups'
+        /// emission and the photons' bounces, continued over the passes).
+        #[arg(long, value_enum, default_value = "independent")]
         photon_sampler: SamplerArg,
         #[arg(long, short, default_value = "render.png")]
         out: PathBuf,
@@ -261,6 +262,15 @@ pub enum Command {
         /// paths in one kernel each (path, photon; the same paths).
         #[arg(long)]
         split_passes: bool,
+        /// Threads of the whole-path photon kernel (photon): each traces its share of a
+        /// pass's photons, starting the next as soon as one is absorbed; 0: one photon per
+        /// thread.
+        #[arg(long, default_value_t = pm::PHOTON_THREADS)]
+        photon_threads: u32,
+        /// With `--final-gather edges`: the second gather over every eye path instead of a
+        /// list of the points near edges (the same image; for measuring the difference).
+        #[arg(long, hide = true)]
+        gather_every_path: bool,
         #[command(flatten)]
         build: BuildArgs,
     },
@@ -477,6 +487,8 @@ pub fn run(cli: Cli) -> Result<()> {
             filter,
             grid_window,
             split_passes,
+            photon_threads,
+            gather_every_path,
             sampler,
             photon_sampler,
             build,
@@ -602,6 +614,8 @@ pub fn run(cli: Cli) -> Result<()> {
                             },
                             photon_bounces: 16,
                             fused: !split_passes,
+                            photon_threads,
+                            list_points: !gather_every_path,
                             grid_window,
                             caustic_radius: 0.5,
                             eye_bounces: bounces,

@@ -85,7 +85,7 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
     o.progress.set_length(specs.len() as u64 * 2);
     let speed_header: Vec<String> = [
         "scene", "triangles", "photons", "rays traced", "bounces", "bounces/photon", "stored", "trace ms", "M bounces/s", "BVH trace ms", "BVH M bounces/s",
-        "split trace ms", "trace parts: emit only / first hit only / no stores ms", "index grid ms", "grid clears+keys+ranks / offsets / place ms", "cells, slots", "index kd ms", "eye ms", "BVH eye ms", "gather grid ms", "gather grid 2r ms", "gather kd ms", "final gather: stored", "BVH eye + final gather + gather ms", "image",
+        "split trace ms", "trace parts: emit only / first hit only / no stores ms", "index grid ms", "grid clears+keys+ranks / offsets / place ms", "cells, slots", "index kd ms", "eye ms", "BVH eye ms", "gather grid ms", "gather grid 2r ms", "gather kd ms", "BVH eye + final gather + gather ms", "image",
     ]
     .map(String::from)
     .to_vec();
@@ -144,11 +144,11 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
         let index_kd = time_recorded(rt, copies, &|c| kd.record_index(c, 0))?;
         let cam = scene.camera.to_pod(o.size, o.size);
         let n = (o.size * o.size) as usize;
-        // The final gather's map holds the direct photons too.
         let mut fg_map = PhotonMap::new(&t, Accel::BVH, Some(tree), area, PhotonOptions { final_gather: FinalGather::All, ..base.clone() })?;
-        let fg_stored = fg_map.trace_and_index(0)?;
+        fg_map.trace_and_index(0)?;
         let (eye_ms, bvh_eye_ms, gather_grid, gather_wide, gather_kd, fg_ms) = if t.batch_size(accel, n) >= n {
             let fb = FrameBuffers::new(&t, accel, n)?;
+            let gp = pm::GatherPoints::new(&t, 0)?;
             let po = PathOptions { seed: 1, bounces: 16, diffuse_bounces: 0, spp: 1, jitter: true, fused: true, sampler: SamplerKind::Sobol };
             let mut p = path::params(&t, &cam, &po, 0, n, 0);
             p.flags |= kdray_shared::RENDER_GATHER;
@@ -164,9 +164,9 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
                 }
                 Ok(())
             })?;
-            let g = time_recorded(rt, copies, &|c| rt.dispatch(c, &grid.gather(0, n as u32, &fb)))?;
-            let w = time_recorded(rt, copies, &|c| rt.dispatch(c, &wide.gather(0, n as u32, &fb)))?;
-            let k = time_recorded(rt, copies, &|c| rt.dispatch(c, &kd.gather(0, n as u32, &fb)))?;
+            let g = time_recorded(rt, copies, &|c| rt.dispatch(c, &grid.gather(0, n as u32, &fb, &gp)))?;
+            let w = time_recorded(rt, copies, &|c| rt.dispatch(c, &wide.gather(0, n as u32, &fb, &gp)))?;
+            let k = time_recorded(rt, copies, &|c| rt.dispatch(c, &kd.gather(0, n as u32, &fb, &gp)))?;
             // Eye paths to their first points, resumed to the second, the gather there (no
             // caustic gather at the first point: the whole final gather but that).
             let fg = time_recorded(rt, copies, &|c| {
@@ -176,7 +176,7 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
                 for k in path::eye_passes(&t, Accel::BVH, &pm::final_gather_params(&p), &fb, true)? {
                     rt.dispatch(c, k.as_ref())?;
                 }
-                rt.dispatch(c, &fg_map.gather(0, n as u32, &fb))
+                rt.dispatch(c, &fg_map.gather(0, n as u32, &fb, &gp))
             })?;
             (format!("{eye:.3}"), format!("{bvh_eye:.3}"), format!("{g:.3}"), format!("{w:.3}"), format!("{k:.3}"), format!("{fg:.3}"))
         } else {
@@ -203,7 +203,6 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
             gather_grid,
             gather_wide,
             gather_kd,
-            fg_stored.to_string(),
             fg_ms,
             format!("{}²", o.size),
         ]);
