@@ -514,18 +514,26 @@ fn final_gather_renders_the_same_with_whole_paths_and_per_bounce_passes() {
     let cam = s.camera.to_pod(24, 24);
     for rt in runtimes() {
         let t = Tracer::new(rt, &s, Some(&tr)).unwrap();
-        let render_with = |fused: bool, final_gather: FinalGather, list_points: bool| {
-            let o = PhotonOptions { photons: 1 << 14, passes: 2, fused, final_gather, list_points, ..Default::default() };
+        let render_with = |fused: bool, final_gather: FinalGather, list_points: bool, edge_levels: u32| {
+            let o = PhotonOptions { photons: 1 << 14, passes: 2, fused, final_gather, list_points, edge_levels, ..Default::default() };
             let mut map = PhotonMap::new(&t, Accel::kd(Algorithm::ShortStack(3)), Some(&tr), s.surface_area(), o).unwrap();
             pm::render(&mut map, &cam, &()).unwrap().0
         };
-        let render = |fused: bool, final_gather: FinalGather| render_with(fused, final_gather, true);
+        let render = |fused: bool, final_gather: FinalGather| render_with(fused, final_gather, true, 2);
         let direct = render(true, FinalGather::Off);
-        // Near edges, the second gather over the list of the points the first one kept (an
-        // indirect dispatch) or over every path: the same gathers, the same image bit for bit.
+        // Near edges, each level's gather over the list of the points the level before kept
+        // (an indirect dispatch) or over every path: the same gathers, the same image bit for
+        // bit; and a second level changes the image (its points near edges bounce again).
         for fused in [true, false] {
-            let (listed, every) = (render_with(fused, FinalGather::Edges, true), render_with(fused, FinalGather::Edges, false));
-            assert!(listed.radiance == every.radiance, "{}: the listed points' second gather renders another image (fused {fused})", rt.name());
+            let mut images = Vec::new();
+            for levels in [1, 2, 3] {
+                let (listed, every) = (render_with(fused, FinalGather::Edges, true, levels), render_with(fused, FinalGather::Edges, false, levels));
+                assert!(listed.radiance == every.radiance, "{}: the listed points' gathers render another image (fused {fused}, {levels} levels)", rt.name());
+                images.push(listed);
+            }
+            let (d12, d23) = (error(&images[0], &images[1]), error(&images[1], &images[2]));
+            eprintln!("{}: final gather near edges, 1 vs 2 levels {:.4} %, 2 vs 3 {:.4} %", rt.name(), d12 * 100.0, d23 * 100.0);
+            assert!(d12 > 1e-5 && d23 > 1e-6, "{}: more levels left the image as it was ({d12}, {d23})", rt.name());
         }
         for fg in [FinalGather::All, FinalGather::Edges] {
             let (whole, split) = (render(true, fg), render(false, fg));

@@ -1075,10 +1075,13 @@ pub struct Gather<'a> {
     pub offsets: &'a Buffer<u32>,
     /// Read and written: each path's state; a path at a gather point gains the photons' radiance.
     pub paths: &'a Buffer<PathState>,
-    /// The final gather's points: written (appended to, `points[0]` their count, cleared
-    /// before) by a gather under `GATHER_EDGES`, read by one under `GATHER_LISTED`, whose items
-    /// they are (`photon::gather`). `count + 1` elements.
+    /// The final gather's points a gather under `GATHER_LISTED` runs over (`photon::gather`;
+    /// element 0 their count, then the paths).
     pub points: &'a Buffer<u32>,
+    /// Written (appended to, element 0 their count, cleared before) by a gather under
+    /// `GATHER_EDGES`: the points near edges, for the next level of the final gather. `count +
+    /// 1` elements to list them, or one (none listed).
+    pub next_points: &'a Buffer<u32>,
 }
 
 impl Kernel for Gather<'_> {
@@ -1091,7 +1094,7 @@ impl Kernel for Gather<'_> {
     fn bindings(&self) -> Vec<Bind<'_>> {
         let mut b = vec![read("rays", self.rays), read("words", self.words), read("powers", self.powers), read("offsets", self.offsets)];
         b.extend(self.index.binds());
-        b.extend([write("paths", self.paths), write("points", self.points)]);
+        b.extend([write("paths", self.paths), read("points", self.points), write("next_points", self.next_points)]);
         b
     }
     fn threads(&self) -> u32 {
@@ -1100,16 +1103,16 @@ impl Kernel for Gather<'_> {
     fn run(&self, t: u32) {
         // SAFETY: called by the native runtime during the dispatch of this pass, which holds
         // its bindings; item t writes the path it gathers for only (paths[t], or under
-        // `GATHER_LISTED` the t-th listed one: listed once each), adds to points[0] atomically
-        // and writes the point slot that returned.
+        // `GATHER_LISTED` the t-th listed one: listed once each), adds to next_points[0]
+        // atomically and writes the slot that returned.
         unsafe {
-            let (rays, mut paths, mut points) = (self.rays.host(), self.paths.host_store(), self.points.host_store());
+            let (rays, mut paths, points, mut next) = (self.rays.host(), self.paths.host_store(), self.points.host(), self.next_points.host_store());
             let sorted = SortedPhotons { words: self.words.host(), powers: self.powers.host(), offsets: self.offsets.host() };
             match self.index {
-                IndexBinds::Grid => photon::gather(t, &self.params, &HashGrid::new(&self.params), rays, &sorted, &mut paths, &mut points),
+                IndexBinds::Grid => photon::gather(t, &self.params, &HashGrid::new(&self.params), rays, &sorted, &mut paths, points, &mut next),
                 IndexBinds::Kd { nodes, leaves } => {
                     let index = KdCells { nodes: nodes.host(), leaves: leaves.host(), cells: self.params.cells };
-                    photon::gather(t, &self.params, &index, rays, &sorted, &mut paths, &mut points)
+                    photon::gather(t, &self.params, &index, rays, &sorted, &mut paths, points, &mut next)
                 }
             }
         }

@@ -103,10 +103,11 @@ pub fn gather_grid(
     #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] powers: &[u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] offsets: &[u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] paths: &mut [PathState],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] points: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] points: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] next_points: &mut [u32],
 ) {
     let sorted = SortedPhotons { words, powers, offsets };
-    photon::gather(crate::item(id, groups), params, &HashGrid::new(params), rays, &sorted, paths, &mut Atomics(points));
+    photon::gather(crate::item(id, groups), params, &HashGrid::new(params), rays, &sorted, paths, points, &mut Atomics(next_points));
 }
 
 #[spirv(compute(threads(64)))]
@@ -121,11 +122,12 @@ pub fn gather_kd(
     #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] nodes: &[KdNode],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] leaves: &[LeafCells],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] paths: &mut [PathState],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] points: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] points: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] next_points: &mut [u32],
 ) {
     let index = KdCells { nodes, leaves, cells: params.cells };
     let sorted = SortedPhotons { words, powers, offsets };
-    photon::gather(crate::item(id, groups), params, &index, rays, &sorted, paths, &mut Atomics(points));
+    photon::gather(crate::item(id, groups), params, &index, rays, &sorted, paths, points, &mut Atomics(next_points));
 }
 
 /// The workgroup counts of an indirect dispatch over the `counts[0]` items a pass before

@@ -308,7 +308,7 @@ pub fn bounce_step<O, C>(
         let last = bounce >= p.max_bounces;
         if is_specular(mat) {
             if !last {
-                next = specular_bounce(mat, tri, pt, normalize3(ray.dir), smp.get1(sampler::dim(bounce, sampler::FRESNEL, false)));
+                next = specular_bounce(mat, tri, pt, normalize3(ray.dir), smp.get1(sampler::dim(bounce, sampler::FRESNEL, 0)));
                 if mat.flags & MAT_MIRROR != 0 {
                     path.power = mul3(path.power, mat.diffuse);
                 }
@@ -319,13 +319,13 @@ pub fn bounce_step<O, C>(
                 let caustic = p.caustic_map != 0 && bounce > 0 && path.flags & PHOTON_SPECULAR_ONLY != 0;
                 let slot = counter.atomic_add(0, 1);
                 if slot < p.capacity {
-                    photons.store(slot as usize, Photon::new(pt, path.power, n, normalize3(ray.dir), caustic, bounce == 0, smp.get1(sampler::dim(bounce, sampler::DITHER, false))));
+                    photons.store(slot as usize, Photon::new(pt, path.power, n, normalize3(ray.dir), caustic, bounce == 0, smp.get1(sampler::dim(bounce, sampler::DITHER, 0))));
                 }
             }
             let a = mat.diffuse;
             let q = a[0].max(a[1]).max(a[2]).min(1.0);
-            if !last && smp.get1(sampler::dim(bounce, sampler::ROULETTE, false)) < q {
-                let u = smp.get2(sampler::dim(bounce, sampler::BOUNCE, false));
+            if !last && smp.get1(sampler::dim(bounce, sampler::ROULETTE, 0)) < q {
+                let u = smp.get2(sampler::dim(bounce, sampler::BOUNCE, 0));
                 let d = cosine_direction(n, u[0], u[1]);
                 next = Ray::new(offset(pt, n), d, 0.0, f32::INFINITY);
                 path.power = mul3(path.power, scale3(a, 1.0 / q));
@@ -858,10 +858,11 @@ pub fn irradiance<I: PhotonIndex>(index: &I, p: &IndexParams, sorted: &SortedPho
 /// gather point, adds the reflected radiance the photons of maps `p.first_map..p.maps` give
 /// (throughput already holds albedo/π) to its radiance (the film then adds the paths up).
 /// Under `GATHER_EDGES` a point near an edge takes the caustic map only, stays a gather point
-/// (for the final gather) and is listed in `points` (its count in `points[0]`, cleared
-/// before; a list without room for every path, one element, lists none); every other point
-/// stops being one.
+/// (for the final gather) and is listed in `next_points` (its count in `next_points[0]`,
+/// cleared before; a list without room for every path, one element, lists none); every other
+/// point stops being one. A list: element 0 the count, then the paths' indices.
 #[inline(always)]
+#[allow(clippy::too_many_arguments)]
 pub fn gather<I: PhotonIndex, P: Store<PathState> + ?Sized, L: Store<u32> + AtomicStore + ?Sized>(
     i: u32,
     p: &IndexParams,
@@ -869,17 +870,18 @@ pub fn gather<I: PhotonIndex, P: Store<PathState> + ?Sized, L: Store<u32> + Atom
     rays: &[Ray],
     sorted: &SortedPhotons,
     paths: &mut P,
-    points: &mut L,
+    points: &[u32],
+    next_points: &mut L,
 ) {
     if i >= p.count {
         return;
     }
     let mut k = i as usize;
     if p.gather_flags & GATHER_LISTED != 0 {
-        if i >= points.load(0) {
+        if i >= points[0] {
             return;
         }
-        k = points.load(1 + i as usize) as usize;
+        k = points[1 + i as usize] as usize;
     }
     let mut path = paths.load(k);
     if path.flags & PATH_GATHER != 0 {
@@ -900,10 +902,10 @@ pub fn gather<I: PhotonIndex, P: Store<PathState> + ?Sized, L: Store<u32> + Atom
         path.radiance = add3(path.radiance, mul3(path.throughput, e));
         if edges {
             if near_edge {
-                let slot = points.atomic_add(0, 1) as usize;
-                // A list without room (none kept: the second gather runs over every path).
-                if 1 + slot < points.len() {
-                    points.store(1 + slot, k as u32);
+                let slot = next_points.atomic_add(0, 1) as usize;
+                // A list without room (none kept: the next gather runs over every path).
+                if 1 + slot < next_points.len() {
+                    next_points.store(1 + slot, k as u32);
                 }
             } else {
                 path.flags &= !PATH_GATHER;

@@ -184,6 +184,11 @@ pub const RENDER_CONTINUE: u32 = 8;
 /// Each pixel's numbers come from its own scrambled Sobol sequence (`sampler`), sample
 /// `sample_base + s` for the dispatch's sample s, instead of independent random numbers.
 pub const RENDER_SOBOL: u32 = 16;
+/// With `RENDER_CONTINUE`: the flags' bits from here up hold the final gather's level, the
+/// bounces from the eye path's first gather point (1, or more where a resumed path's gather
+/// point was near an edge again and resumed once more: `render::resume_level`). Each level
+/// draws from sampler dimensions of its own.
+pub const RENDER_LEVEL_SHIFT: u32 = 8;
 
 /// Push constants of the renderer's kernels (camera rays, path steps, accumulation).
 #[repr(C)]

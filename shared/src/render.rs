@@ -10,11 +10,11 @@ use crate::math::{cosine_direction, scale3};
 use crate::parts::Parts;
 use crate::pod::{
     Hit, ItemParams, Light, Material, PathState, RenderParams, ShadeTerms, Triangle, PATH_ACTIVE, PATH_DIFFUSE_SHIFT, PATH_GATHER,
-    RENDER_CONTINUE, RENDER_JITTER,
+    RENDER_CONTINUE, RENDER_JITTER, RENDER_LEVEL_SHIFT,
 };
 use crate::ray::Ray;
 use crate::rng::Rng;
-use crate::sampler::{Sampler, DIM_CAMERA, DIM_RESUME};
+use crate::sampler::{self, Sampler, DIM_CAMERA};
 use crate::shade;
 
 /// Path `i` of the batch (sample i / pixels of pixel i % pixels): its primary ray and a fresh
@@ -43,18 +43,29 @@ pub fn camera_sample(i: u32, p: &RenderParams) -> (Ray, PathState) {
     (ray, PathState::start(stream))
 }
 
+/// The final gather's level of the paths of `p`: 0 if they are not resumed (`RENDER_CONTINUE`
+/// off), else at least 1 (`RENDER_LEVEL_SHIFT`).
+#[inline(always)]
+pub fn resume_level(p: &RenderParams) -> u32 {
+    if p.flags & RENDER_CONTINUE == 0 {
+        0
+    } else {
+        (p.flags >> RENDER_LEVEL_SHIFT).max(1)
+    }
+}
+
 /// A path at a gather point `point` (`shade::gather_point`) continued by one cosine-weighted
 /// diffuse bounce from it: the final gather. Its throughput (which holds albedo/π there) times
 /// π, the cosine and the pdf cos/π cancelling; the radiance it has gathered is kept. A path
 /// that did not end at a gather point stays ended. Its direction takes the path's sampler's
-/// dimension `DIM_RESUME` (the bounces after it have dimensions of their own,
-/// `sampler::dim(_, _, true)`).
+/// dimension `sampler::resume_dim` of the level (the bounces after it have dimensions of their
+/// own, `sampler::dim(_, _, level)`).
 #[inline(always)]
 pub fn resume(p: &RenderParams, point: &Ray, path: &PathState) -> (Ray, PathState) {
     if path.flags & PATH_GATHER == 0 {
         return (shade::NO_RAY, PathState { flags: 0, ..*path });
     }
-    let u = Sampler::new(p, path.pixel).get2(DIM_RESUME);
+    let u = Sampler::new(p, path.pixel).get2(sampler::resume_dim(resume_level(p)));
     let n = point.dir;
     let d = cosine_direction(n, u[0], u[1]);
     let next = PathState {

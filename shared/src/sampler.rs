@@ -55,11 +55,23 @@ pub const FRESNEL: u32 = 3;
 pub const DITHER: u32 = 4;
 
 /// The dimension of use `what` (`LIGHT`, `ROULETTE`, `BOUNCE`, `FRESNEL`, `DITHER`) at bounce `bounce`;
-/// a resumed path (a final gather, `continued`) has dimensions of its own.
+/// a resumed path (a final gather of level `level` ≥ 1, `render::resume_level`; 0: not
+/// resumed) has dimensions of its own.
 #[inline(always)]
-pub fn dim(bounce: u32, what: u32, continued: bool) -> u32 {
-    let base = if continued { 0x1000 } else { 0x10 };
+pub fn dim(bounce: u32, what: u32, level: u32) -> u32 {
+    let base = if level == 0 { 0x10 } else { level.wrapping_mul(0x1000) };
     base + bounce.wrapping_mul(DIMS_PER_BOUNCE) + what
+}
+
+/// The final gather's bounce direction at level `level` ≥ 1 (2-D): `DIM_RESUME`, then one
+/// dimension pair of its own per further level.
+#[inline(always)]
+pub fn resume_dim(level: u32) -> u32 {
+    if level <= 1 {
+        DIM_RESUME
+    } else {
+        0x800 + level
+    }
 }
 
 /// A 32-bit fraction to a float in [0, 1): its top 24 bits, exactly representable.

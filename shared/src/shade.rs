@@ -237,10 +237,10 @@ pub fn path_step(
     }
     // Each bounce draws from dimensions of its own.
     let smp = Sampler::new(p, path.pixel);
-    let continued = p.flags & RENDER_CONTINUE != 0;
+    let level = crate::render::resume_level(p);
     let (pt, n) = surface_point(tri, hit, ray);
     if is_specular(mat) && bounce < p.max_bounces {
-        *ray = specular_bounce(mat, tri, pt, ray.dir, smp.get1(sampler::dim(bounce, sampler::FRESNEL, continued)));
+        *ray = specular_bounce(mat, tri, pt, ray.dir, smp.get1(sampler::dim(bounce, sampler::FRESNEL, level)));
         if mat.flags & MAT_MIRROR != 0 {
             path.throughput = mul3(path.throughput, mat.diffuse);
         }
@@ -250,7 +250,7 @@ pub fn path_step(
     let gather = p.flags & RENDER_GATHER != 0;
     let mut shadow = NO_RAY;
     if !(gather && p.flags & RENDER_PHOTON_DIRECT != 0) {
-        let u = smp.get2(sampler::dim(bounce, sampler::LIGHT, continued));
+        let u = smp.get2(sampler::dim(bounce, sampler::LIGHT, level));
         let (s, direct) = light_sample(u, pt, n, mat.diffuse, lights, p.light_count);
         shadow = s;
         terms.direct = mul3(path.throughput, direct);
@@ -263,8 +263,8 @@ pub fn path_step(
     } else if diffuse < p.diffuse_bounces && bounce < p.max_bounces {
         let a = mat.diffuse;
         let q = a[0].max(a[1]).max(a[2]).min(1.0);
-        if smp.get1(sampler::dim(bounce, sampler::ROULETTE, continued)) < q {
-            let u = smp.get2(sampler::dim(bounce, sampler::BOUNCE, continued));
+        if smp.get1(sampler::dim(bounce, sampler::ROULETTE, level)) < q {
+            let u = smp.get2(sampler::dim(bounce, sampler::BOUNCE, level));
             let d = cosine_direction(n, u[0], u[1]);
             *ray = Ray::new(offset(pt, n), d, 0.0, f32::INFINITY);
             path.throughput = mul3(path.throughput, scale3(a, 1.0 / q));

@@ -34,7 +34,7 @@ use kdray_shared::query::Closest;
 use kdray_shared::rng::pcg_hash;
 use kdray_shared::{
     Camera, Hit, IndexParams, LeafCells, Photon, PhotonParams, PhotonPath, Ray, RenderParams, FILTER_CONSTANT, GATHER_EDGES, INDEX_GRID, INDEX_KD,
-    GATHER_LISTED, PHOTON_SOBOL, PHOTON_STORE_DIRECT, RENDER_CONTINUE, RENDER_GATHER, RENDER_JITTER, RENDER_PHOTON_DIRECT,
+    GATHER_LISTED, PHOTON_SOBOL, PHOTON_STORE_DIRECT, RENDER_CONTINUE, RENDER_GATHER, RENDER_JITTER, RENDER_LEVEL_SHIFT, RENDER_PHOTON_DIRECT,
 };
 use std::collections::VecDeque;
 use std::time::Instant;
@@ -78,7 +78,8 @@ pub enum FinalGather {
     /// A final gather only where the first point's disc holds photons on surfaces of other
     /// orientations, normals more than 60° apart (a corner or an edge within the radius, but
     /// also the back of thin geometry or strongly curved surfaces: `GATHER_EDGES`); the photon
-    /// map read directly everywhere else. Edges of less than 60° are not detected.
+    /// map read directly everywhere else. Edges of less than 60° are not detected. A second
+    /// point near an edge again bounces once more, up to `PhotonOptions::edge_levels`.
     Edges,
     /// A final gather at every first diffuse point.
     All,
@@ -118,7 +119,12 @@ pub struct PhotonOptions {
     pub photon_direct: bool,
     /// Final gathering, everywhere, near edges only, or not at all (`FinalGather`).
     pub final_gather: FinalGather,
-    /// With `FinalGather::Edges`: the second gather runs over a list of the points near edges
+    /// With `FinalGather::Edges`: the final gather's levels (1: one bounce from a first point
+    /// near an edge to a second point, read there; 2 (the default): a second point near an
+    /// edge again bounces once more, its photon estimate being as biased there as the first
+    /// point's; and so on).
+    pub edge_levels: u32,
+    /// With `FinalGather::Edges`: each level's gather runs over a list of the points near edges
     /// (an indirect dispatch, `GatherPoints`) instead of over every eye path (the same image;
     /// off only to measure the difference).
     pub list_points: bool,
@@ -163,6 +169,7 @@ impl Default for PhotonOptions {
             spread: COHERENT_SPREAD,
             photon_direct: false,
             final_gather: FinalGather::Edges,
+            edge_levels: 2,
             list_points: true,
             filter: FILTER_CONSTANT,
             photon_bounces: 16,
@@ -297,6 +304,9 @@ impl<'t> PhotonMap<'t> {
         }
         if o.final_gather != FinalGather::Off && o.photon_direct {
             bail!(InvalidInput: "final gathering takes direct light from shadow rays: it cannot be combined with direct light from photons");
+        }
+        if !(1..=8).contains(&o.edge_levels) {
+            bail!(InvalidInput: "the final gather's levels must be between 1 and 8, got {}", o.edge_levels);
         }
         if !(o.grid_window == 2 || o.grid_window == 3) {
             bail!(InvalidInput: "the photon grid's window must be 2 or 3 cells, got {}", o.grid_window);
@@ -554,23 +564,28 @@ impl<'t> PhotonMap<'t> {
     /// The gather pass of pass `pass` over `count` eye paths, maps `first_map..` (1: the
     /// caustic map alone).
     pub fn gather_maps<'a>(&'a self, pass: u32, count: u32, fb: &'a FrameBuffers, gp: &'a GatherPoints, first_map: u32) -> Gather<'a> {
-        self.gather_with(IndexParams { first_map, ..self.index_params(pass, count) }, fb, gp)
+        self.gather_with(IndexParams { first_map, ..self.index_params(pass, count) }, fb, gp, 0)
     }
 
-    /// The first gather of `FinalGather::Edges`: every map, the points
-    /// near edges kept for the final gather (`GATHER_EDGES`) and listed in `gp` (cleared
-    /// before).
+    /// The first gather of `FinalGather::Edges`: every map, the points near edges kept for the
+    /// final gather (`GATHER_EDGES`) and listed in `gp.list(0)` (cleared before).
     pub fn gather_edges<'a>(&'a self, pass: u32, count: u32, fb: &'a FrameBuffers, gp: &'a GatherPoints) -> Gather<'a> {
-        self.gather_with(IndexParams { gather_flags: GATHER_EDGES, ..self.index_params(pass, count) }, fb, gp)
+        self.gather_with(IndexParams { gather_flags: GATHER_EDGES, ..self.index_params(pass, count) }, fb, gp, 0)
     }
 
-    /// The final gather's second gather over the points `gather_edges` listed in `gp` (every
-    /// map), dispatched indirectly (`GatherPoints::record_args` before).
-    pub fn gather_listed<'a>(&'a self, pass: u32, count: u32, fb: &'a FrameBuffers, gp: &'a GatherPoints) -> Gather<'a> {
-        self.gather_with(IndexParams { gather_flags: GATHER_LISTED, ..self.index_params(pass, count) }, fb, gp)
+    /// The gather at the final gather's level `level` ≥ 1 (every map), over the points the
+    /// level before listed in `gp.list(level - 1)` (`listed`: dispatched indirectly,
+    /// `GatherPoints::record_args` before) or over every path; with `edges`, the points near
+    /// edges again kept for the next level and listed in `gp.list(level)` (cleared before).
+    #[allow(clippy::too_many_arguments)]
+    pub fn gather_level<'a>(&'a self, pass: u32, count: u32, fb: &'a FrameBuffers, gp: &'a GatherPoints, level: u32, listed: bool, edges: bool) -> Gather<'a> {
+        let flags = if listed { GATHER_LISTED } else { 0 } | if edges { GATHER_EDGES } else { 0 };
+        self.gather_with(IndexParams { gather_flags: flags, ..self.index_params(pass, count) }, fb, gp, level)
     }
 
-    fn gather_with<'a>(&'a self, params: IndexParams, fb: &'a FrameBuffers, gp: &'a GatherPoints) -> Gather<'a> {
+    /// A gather at level `level` (0: the eye paths' first points): reads `gp.list(level - 1)`,
+    /// writes `gp.list(level)`.
+    fn gather_with<'a>(&'a self, params: IndexParams, fb: &'a FrameBuffers, gp: &'a GatherPoints, level: u32) -> Gather<'a> {
         Gather {
             params,
             index: self.index_binds(),
@@ -579,7 +594,8 @@ impl<'t> PhotonMap<'t> {
             powers: &self.sorted_powers,
             offsets: &self.sort.offsets,
             paths: &fb.paths,
-            points: &gp.points,
+            points: gp.list(level.wrapping_sub(1)),
+            next_points: gp.list(level),
         }
     }
 
@@ -662,30 +678,38 @@ impl<'t> PhotonMap<'t> {
     }
 }
 
-/// The gather points near edges of a batch of eye paths (`FinalGather::Edges`): the first
-/// gather lists them, the final gather's second gather runs over the list alone — a dense,
-/// indirect dispatch instead of one over every path, most of whose lanes would idle.
+/// The gather points near edges of a batch of eye paths (`FinalGather::Edges`), level by level
+/// of the final gather: the first gather lists them, the next level's gather runs over the list
+/// alone — a dense, indirect dispatch instead of one over every path, most of whose lanes
+/// would idle — and lists those near edges again for the level after it. Two lists, used in
+/// turn.
 pub struct GatherPoints {
     /// Element 0: the points listed; then the paths' indices.
-    pub points: Buffer<u32>,
-    /// The workgroup counts of a dispatch over them (`DispatchArgs`).
+    lists: [Buffer<u32>; 2],
+    /// The workgroup counts of a dispatch over a list (`DispatchArgs`).
     pub args: Buffer<[u32; 3]>,
 }
 
 impl GatherPoints {
-    /// Room for every path of a batch of `paths`.
+    /// Room for every path of a batch of `paths` (0: lists that list none).
     pub fn new(t: &Tracer, paths: usize) -> Result<Self> {
-        Ok(GatherPoints { points: t.rt.alloc("gather points", paths + 1)?, args: t.rt.alloc("gather point dispatch", 1)? })
+        let rt = t.rt;
+        Ok(GatherPoints { lists: [rt.alloc("gather points", paths + 1)?, rt.alloc("gather points", paths + 1)?], args: rt.alloc("gather point dispatch", 1)? })
     }
 
-    /// Records clearing the list (before the gather that fills it).
-    pub fn record_clear(&self, rt: &dyn Runtime, c: &mut crate::runtime::Commands) -> Result<()> {
-        rt.clear(c, self.points.raw())
+    /// The list of the points near edges at final-gather level `level` (0: of the first gather).
+    pub fn list(&self, level: u32) -> &Buffer<u32> {
+        &self.lists[(level % 2) as usize]
     }
 
-    /// Records the dispatch's workgroup counts from the list's length.
-    pub fn record_args(&self, rt: &dyn Runtime, c: &mut crate::runtime::Commands) -> Result<()> {
-        rt.dispatch(c, &DispatchArgs { counts: &self.points, args: &self.args })
+    /// Records clearing level `level`'s list (before the gather that fills it).
+    pub fn record_clear(&self, rt: &dyn Runtime, c: &mut crate::runtime::Commands, level: u32) -> Result<()> {
+        rt.clear(c, self.list(level).raw())
+    }
+
+    /// Records the workgroup counts of a dispatch over level `level`'s list.
+    pub fn record_args(&self, rt: &dyn Runtime, c: &mut crate::runtime::Commands, level: u32) -> Result<()> {
+        rt.dispatch(c, &DispatchArgs { counts: self.list(level), args: &self.args })
     }
 }
 
@@ -703,42 +727,59 @@ pub fn eye_params(t: &Tracer, cam: &Camera, o: &PhotonOptions, first: usize, cou
     path::with_samples(p, o.eye_samples)
 }
 
-/// The final gather's parameters for the eye paths of `eye` (`eye_params`): resume from the
-/// gather points, their own random streams; at the next diffuse point direct light by a
-/// shadow ray, the rest from the photon maps.
-pub fn final_gather_params(eye: &RenderParams) -> RenderParams {
+/// The final gather's parameters for the eye paths of `eye` (`eye_params`) at level `level` ≥ 1:
+/// resume from the gather points, random streams and sampler dimensions of the level's own;
+/// at the next diffuse point direct light by a shadow ray, the rest from the photon maps.
+pub fn final_gather_params(eye: &RenderParams, level: u32) -> RenderParams {
     // The eye pass's other flags (jitter) concern the camera rays, which a resumed path has
     // left behind.
-    RenderParams { seed: pcg_hash(eye.seed ^ 0xF17A_16A7), flags: RENDER_GATHER | RENDER_CONTINUE, ..*eye }
+    let seed = pcg_hash(eye.seed ^ 0xF17A_16A7 ^ (level - 1).wrapping_mul(0x9E37_79B9));
+    RenderParams { seed, flags: RENDER_GATHER | RENDER_CONTINUE | (level << RENDER_LEVEL_SHIFT), ..*eye }
 }
 
 /// The eye passes and gathers of pass `pass` for the paths of `p` (`eye_params`), up to the
 /// film: eye paths to their first diffuse points and the gather there; with final gathering,
 /// the caustic map at the first point (near edges only: every map elsewhere), the paths
-/// resumed to a second point, and every map there.
+/// resumed to a second point, and every map there — near edges, level by level
+/// (`PhotonOptions::edge_levels`): a point of the level before the last near an edge again
+/// takes the caustic map and is resumed once more.
 fn record_eye<'a>(c: &mut crate::runtime::Commands, map: &'a PhotonMap, p: &RenderParams, pass: u32, fb: &'a FrameBuffers, gp: &'a GatherPoints) -> Result<()> {
     let (t, rt) = (map.t, map.t.rt);
     for k in path::eye_passes(t, map.accel, p, fb, map.o.fused)? {
         rt.dispatch(c, k.as_ref())?;
     }
+    let edges = map.o.final_gather == FinalGather::Edges;
     match map.o.final_gather {
         FinalGather::Off => return rt.dispatch(c, &map.gather(pass, p.count, fb, gp) as &dyn Kernel),
-        FinalGather::Edges if map.o.list_points => {
-            gp.record_clear(rt, c)?;
+        FinalGather::Edges => {
+            gp.record_clear(rt, c, 0)?;
             rt.dispatch(c, &map.gather_edges(pass, p.count, fb, gp) as &dyn Kernel)?;
         }
-        FinalGather::Edges => rt.dispatch(c, &map.gather_edges(pass, p.count, fb, gp) as &dyn Kernel)?,
         FinalGather::All if map.maps > 1 => rt.dispatch(c, &map.gather_maps(pass, p.count, fb, gp, 1) as &dyn Kernel)?,
         FinalGather::All => {}
     }
-    for k in path::eye_passes(t, map.accel, &final_gather_params(p), fb, map.o.fused)? {
-        rt.dispatch(c, k.as_ref())?;
+    let levels = if edges { map.o.edge_levels.max(1) } else { 1 };
+    for level in 1..=levels {
+        for k in path::eye_passes(t, map.accel, &final_gather_params(p, level), fb, map.o.fused)? {
+            rt.dispatch(c, k.as_ref())?;
+        }
+        if !edges {
+            rt.dispatch(c, &map.gather(pass, p.count, fb, gp) as &dyn Kernel)?;
+            continue;
+        }
+        let again = level < levels;
+        if again {
+            gp.record_clear(rt, c, level)?;
+        }
+        let k = map.gather_level(pass, p.count, fb, gp, level, map.o.list_points, again);
+        if map.o.list_points {
+            gp.record_args(rt, c, level - 1)?;
+            rt.dispatch_indirect(c, &k, &gp.args, 0)?;
+        } else {
+            rt.dispatch(c, &k)?;
+        }
     }
-    if map.o.final_gather == FinalGather::Edges && map.o.list_points {
-        gp.record_args(rt, c)?;
-        return rt.dispatch_indirect(c, &map.gather_listed(pass, p.count, fb, gp), &gp.args, 0);
-    }
-    rt.dispatch(c, &map.gather(pass, p.count, fb, gp) as &dyn Kernel)
+    Ok(())
 }
 
 /// Passes submitted ahead of the host's check of their photon counts. With two the device

@@ -271,6 +271,10 @@ pub enum Command {
         /// list of the points near edges (the same image; for measuring the difference).
         #[arg(long, hide = true)]
         gather_every_path: bool,
+        /// Levels of the final gather near edges (photon, `--final-gather edges`): a point it
+        /// reaches near an edge again bounces once more, up to this many bounces.
+        #[arg(long, default_value_t = 2)]
+        final_gather_levels: u32,
         #[command(flatten)]
         build: BuildArgs,
     },
@@ -489,6 +493,7 @@ pub fn run(cli: Cli) -> Result<()> {
             split_passes,
             photon_threads,
             gather_every_path,
+            final_gather_levels,
             sampler,
             photon_sampler,
             build,
@@ -616,6 +621,7 @@ pub fn run(cli: Cli) -> Result<()> {
                             fused: !split_passes,
                             photon_threads,
                             list_points: !gather_every_path,
+                            edge_levels: final_gather_levels,
                             grid_window,
                             caustic_radius: 0.5,
                             eye_bounces: bounces,

@@ -173,7 +173,7 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
                 for k in path::eye_passes(&t, Accel::BVH, &p, &fb, true)? {
                     rt.dispatch(c, k.as_ref())?;
                 }
-                for k in path::eye_passes(&t, Accel::BVH, &pm::final_gather_params(&p), &fb, true)? {
+                for k in path::eye_passes(&t, Accel::BVH, &pm::final_gather_params(&p, 1), &fb, true)? {
                     rt.dispatch(c, k.as_ref())?;
                 }
                 rt.dispatch(c, &fg_map.gather(0, n as u32, &fb, &gp))
