@@ -359,8 +359,8 @@ fn furnace_radiance_is_emission_over_one_minus_albedo() {
         let (mean, rms, n) = furnace_error(&img, &cam);
         eprintln!("{}: photon mapping, {n} pixels: mean {mean:.4} (want 2), rms deviation {rms:.4}", rt.name());
         assert!((mean / 2.0 - 1.0).abs() < 0.01, "{}: photon-mapped furnace mean {mean}", rt.name());
-        // Final gathering: direct light by shadow rays, one bounce, all light from the photons
-        // (direct ones included) at the second point.
+        // Final gathering: direct light by shadow rays, one bounce (near edges: up to two), at
+        // the second point direct light by its shadow ray and the rest from the photons.
         for fg in [FinalGather::All, FinalGather::Edges] {
             let o = PhotonOptions { photons, passes, radius: Some(0.05), final_gather: fg, ..Default::default() };
             let mut map = PhotonMap::new(&t, Accel::BRUTE, None, s.surface_area(), o).unwrap();
@@ -780,4 +780,33 @@ fn a_destroyed_device_mid_render_returns_the_passes_before_it() {
     assert!(why.contains("lost") || why.contains("destroyed"), "{why}");
     assert!(stats.passes >= 2 && stats.passes <= 5, "{} passes", stats.passes);
     assert!(img.radiance.iter().any(|p| p[0] > 0.0));
+}
+
+/// The indirect dispatch over a list (`kernel::dispatch_args`) covers every item with at most
+/// 65 535 workgroups along x and no row of workgroups to spare, past one row too.
+#[test]
+fn dispatch_args_cover_every_listed_item() {
+    use kdray_shared::kernel::{dispatch_args, MAX_GROUPS, WORKGROUP};
+    for items in [0u32, 1, 63, 64, 65, 1 << 20, MAX_GROUPS * WORKGROUP, MAX_GROUPS * WORKGROUP + 1, 1024 * 1024 * 4, u32::MAX / 2] {
+        let [x, y, z] = dispatch_args(items);
+        assert_eq!(z, 1);
+        assert!(x <= MAX_GROUPS && y <= MAX_GROUPS, "{items}: {x} × {y}");
+        let threads = x as u64 * y as u64 * WORKGROUP as u64;
+        assert!(threads >= items as u64, "{items}: {x} × {y} workgroups leave items out");
+        assert!(items == 0 || (x as u64 * (y as u64 - 1) * WORKGROUP as u64) < items as u64, "{items}: a spare row ({x} × {y})");
+        assert!(items > 0 || x == 0, "no items, no workgroups");
+    }
+}
+
+/// The final gather's levels are checked where they apply: 0 or more than 8 near edges is an
+/// error, and any value passes when the final gather is off.
+#[test]
+fn final_gather_levels_are_checked_near_edges_only() {
+    let s = scene::load("cornell").unwrap();
+    let t = Tracer::new(&NATIVE, &s, None).unwrap();
+    for (final_gather, edge_levels, ok) in [(FinalGather::Edges, 0, false), (FinalGather::Edges, 9, false), (FinalGather::Edges, 3, true), (FinalGather::Off, 0, true)] {
+        let o = PhotonOptions { photons: 1024, passes: 1, final_gather, edge_levels, ..Default::default() };
+        let r = PhotonMap::new(&t, Accel::BRUTE, None, s.surface_area(), o);
+        assert_eq!(r.is_ok(), ok, "{final_gather:?} with {edge_levels} levels");
+    }
 }

@@ -366,7 +366,7 @@ pub struct PhotonParams {
     pub caustic_map: u32,
     /// The pass's index (with `PHOTON_SOBOL`: where its photons start in the sequences).
     pub pass: u32,
-    /// The scene box (the kd-tree's root cell) for `photon::trace_photon`.
+    /// The scene box (the kd-tree's root cell) for `photon::trace_photons`.
     pub bounds_min: [f32; 3],
     /// With `PHOTON_SOBOL`: the seed of the render's photon sequences' scrambles (the same for
     /// every pass).

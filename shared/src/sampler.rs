@@ -63,14 +63,14 @@ pub fn dim(bounce: u32, what: u32, level: u32) -> u32 {
     base + bounce.wrapping_mul(DIMS_PER_BOUNCE) + what
 }
 
-/// The final gather's bounce direction at level `level` ≥ 1 (2-D): `DIM_RESUME`, then one
-/// dimension pair of its own per further level.
+/// The final gather's bounce direction at level `level` ≥ 1 (2-D): `DIM_RESUME`, then for a
+/// further level the top of its block of `dim` (never a bounce's: bounces stay below 511).
 #[inline(always)]
 pub fn resume_dim(level: u32) -> u32 {
     if level <= 1 {
         DIM_RESUME
     } else {
-        0x800 + level
+        level.wrapping_mul(0x1000) + 0xFFF
     }
 }
 

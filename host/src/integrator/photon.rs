@@ -34,7 +34,7 @@ use kdray_shared::query::Closest;
 use kdray_shared::rng::pcg_hash;
 use kdray_shared::{
     Camera, Hit, IndexParams, LeafCells, Photon, PhotonParams, PhotonPath, Ray, RenderParams, FILTER_CONSTANT, GATHER_EDGES, INDEX_GRID, INDEX_KD,
-    GATHER_LISTED, PHOTON_SOBOL, PHOTON_STORE_DIRECT, RENDER_CONTINUE, RENDER_GATHER, RENDER_JITTER, RENDER_LEVEL_SHIFT, RENDER_PHOTON_DIRECT,
+    GATHER_LISTED, PHOTON_SOBOL, PHOTON_STORE_DIRECT, RENDER_CONTINUE, RENDER_GATHER, RENDER_JITTER, RENDER_LEVEL_SHIFT, RENDER_PHOTON_DIRECT, RENDER_SOBOL,
 };
 use std::collections::VecDeque;
 use std::time::Instant;
@@ -305,7 +305,7 @@ impl<'t> PhotonMap<'t> {
         if o.final_gather != FinalGather::Off && o.photon_direct {
             bail!(InvalidInput: "final gathering takes direct light from shadow rays: it cannot be combined with direct light from photons");
         }
-        if !(1..=8).contains(&o.edge_levels) {
+        if o.final_gather == FinalGather::Edges && !(1..=8).contains(&o.edge_levels) {
             bail!(InvalidInput: "the final gather's levels must be between 1 and 8, got {}", o.edge_levels);
         }
         if !(o.grid_window == 2 || o.grid_window == 3) {
@@ -432,6 +432,18 @@ impl<'t> PhotonMap<'t> {
         }
     }
 
+    /// The threads of a whole-path dispatch of `count` photons (`PhotonParams::stride`):
+    /// `photon_threads`, at most one per photon; on a software driver at most 64 photons per
+    /// thread (lavapipe ends an item silently after about 65 535 loop iterations in all).
+    pub fn stride(&self, count: u32) -> u32 {
+        let threads = match self.o.photon_threads {
+            0 => count,
+            t if self.t.rt.is_software() => t.max(count.div_ceil(64)),
+            t => t,
+        };
+        threads.min(count)
+    }
+
     /// The whole-path photon kernel for `p`, when `fused` is on and there is one
     /// (`Tracer::whole_path_method`).
     fn fused(&self, p: PhotonParams) -> Option<TracePhotons<'_>> {
@@ -470,7 +482,7 @@ impl<'t> PhotonMap<'t> {
         while first < self.o.photons {
             let count = (self.batch as u32).min(self.o.photons - first);
             let p = PhotonParams { count, first, ..base };
-            if let Some(k) = self.fused(PhotonParams { stride: self.o.photon_threads.min(count), ..p }) {
+            if let Some(k) = self.fused(PhotonParams { stride: self.stride(count), ..p }) {
                 rt.dispatch(c, &k)?;
                 first += count;
                 continue;
@@ -728,13 +740,17 @@ pub fn eye_params(t: &Tracer, cam: &Camera, o: &PhotonOptions, first: usize, cou
 }
 
 /// The final gather's parameters for the eye paths of `eye` (`eye_params`) at level `level` ≥ 1:
-/// resume from the gather points, random streams and sampler dimensions of the level's own;
+/// resume from the gather points, the eye paths' kind of numbers with random streams and
+/// sampler dimensions of the level's own;
 /// at the next diffuse point direct light by a shadow ray, the rest from the photon maps.
 pub fn final_gather_params(eye: &RenderParams, level: u32) -> RenderParams {
     // The eye pass's other flags (jitter) concern the camera rays, which a resumed path has
     // left behind.
     let seed = pcg_hash(eye.seed ^ 0xF17A_16A7 ^ (level - 1).wrapping_mul(0x9E37_79B9));
-    RenderParams { seed, flags: RENDER_GATHER | RENDER_CONTINUE | (level << RENDER_LEVEL_SHIFT), ..*eye }
+    // Sobol numbers (`RENDER_SOBOL`) go on: until 2026-12-03 resumed paths drew independent
+    // ones (the flags were replaced), which natively cost 3–4 % more error at equal passes
+    // (Cornell box, 128², 48 passes, four seeds).
+    RenderParams { seed, flags: RENDER_GATHER | RENDER_CONTINUE | (eye.flags & RENDER_SOBOL) | (level << RENDER_LEVEL_SHIFT), ..*eye }
 }
 
 /// The eye passes and gathers of pass `pass` for the paths of `p` (`eye_params`), up to the
@@ -864,7 +880,7 @@ pub fn render(map: &mut PhotonMap, cam: &Camera, progress: &dyn Progress) -> Res
             Err(e) => return fail(saved, format!("pass {k} failed"), e),
         };
         if stored > map.capacity {
-            // Pass k lost photons (the one after it may have too): grow the records and go
+            // Pass k lost photons (those after it may have too): grow the records and go
             // back to the last checkpoint's film.
             flight.clear();
             let restart = rt.finish().and_then(|_| map.grow(stored)).and_then(|_| restore(t, &fbs, saved.as_ref()));

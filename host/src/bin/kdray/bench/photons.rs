@@ -6,8 +6,8 @@
 //! paths, the per-bounce passes, and the whole-path kernel without lights, stopped at the
 //! first hit and storing nothing: where its time goes), the photon index's build time (hashed
 //! grid and kd leaves), and the eye pass and the gather at the benchmark's resolution (grid of
-//! cells r and of 2r, kd leaves), and a final gather's eye pass (eye paths, resumed, gathered
-//! with the direct photons in the map: BVH, grid). Times are wall time per pass of several passes recorded into
+//! cells r and of 2r, kd leaves), and a final gather's eye pass (eye paths, resumed to a
+//! second point with its shadow ray, gathered there: BVH, grid). Times are wall time per pass of several passes recorded into
 //! one submission (launch overhead amortised, every clear and dispatch included).
 //!
 //! Table 2 (`photons-error`): per scene at 512² (or `--size` if smaller), the error of
@@ -129,7 +129,7 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
                 rt.dispatch(c, &k)
             })
         };
-        let p0 = grid.photon_params(0);
+        let p0 = PhotonParams { stride: grid.stride(photons), ..grid.photon_params(0) };
         let parts = [part(PhotonParams { light_count: 0, ..p0 })?, part(PhotonParams { max_bounces: 0, ..p0 })?, part(PhotonParams { capacity: 0, ..p0 })?];
         let mut wide = PhotonMap::new(&t, accel, Some(tree), area, PhotonOptions { grid_window: 2, ..base.clone() })?;
         wide.trace_and_index(0)?;
