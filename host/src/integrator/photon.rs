@@ -582,13 +582,14 @@ impl<'t> PhotonMap<'t> {
     /// The first gather of `FinalGather::Edges`: every map, the points near edges kept for the
     /// final gather (`GATHER_EDGES`) and listed in `gp.list(0)` (cleared before).
     pub fn gather_edges<'a>(&'a self, pass: u32, count: u32, fb: &'a FrameBuffers, gp: &'a GatherPoints) -> Gather<'a> {
-        self.gather_with(IndexParams { gather_flags: GATHER_EDGES, ..self.index_params(pass, count) }, fb, gp, 0)
+        self.gather_level(pass, count, fb, gp, 0, false, true)
     }
 
-    /// The gather at the final gather's level `level` ≥ 1 (every map), over the points the
-    /// level before listed in `gp.list(level - 1)` (`listed`: dispatched indirectly,
-    /// `GatherPoints::record_args` before) or over every path; with `edges`, the points near
-    /// edges again kept for the next level and listed in `gp.list(level)` (cleared before).
+    /// The gather at the final gather's level `level` (every map; 0: the eye paths' first
+    /// points), over the points the level before listed in `gp.list(level - 1)` (`listed`:
+    /// dispatched indirectly, `GatherPoints::record_args` before) or over every path; with
+    /// `edges`, the points near edges kept for the next level and listed in `gp.list(level)`
+    /// (cleared before).
     #[allow(clippy::too_many_arguments)]
     pub fn gather_level<'a>(&'a self, pass: u32, count: u32, fb: &'a FrameBuffers, gp: &'a GatherPoints, level: u32, listed: bool, edges: bool) -> Gather<'a> {
         let flags = if listed { GATHER_LISTED } else { 0 } | if edges { GATHER_EDGES } else { 0 };
@@ -798,9 +799,9 @@ fn record_eye<'a>(c: &mut crate::runtime::Commands, map: &'a PhotonMap, p: &Rend
     Ok(())
 }
 
-/// Passes submitted ahead of the host's check of their photon counts. With two the device
-/// could wait on the host; three kept it busy (H200, Cornell box 256 × 4 passes: 0.94 → 0.93 s;
-/// four: 0.92 s, and an overflow found one pass later).
+/// Passes submitted ahead of the host's check of their photon counts: three measured 1 %
+/// faster than two (H200, Cornell box 256 × 4 passes: 0.94 → 0.93 s; four: 0.92 s, and an
+/// overflow found one pass later still).
 const IN_FLIGHT: usize = 3;
 
 /// Renders `cam`'s image by progressive photon mapping; `progress` counts passes.
