@@ -549,7 +549,7 @@ fn scene_arrays_split_across_bindings_give_the_same_answers() {
             for fused in [true, false] {
                 let o = PhotonOptions { photons: 2000, passes: 2, index: IndexKind::Grid, final_gather: FinalGather::Off, fused, ..Default::default() };
                 let render = |t: &Tracer| {
-                    let mut map = PhotonMap::new(t, accel, Some(&tree), scene.surface_area(), o.clone()).unwrap();
+                    let mut map = PhotonMap::new(t, accel, Some(&tree), &scene, o.clone()).unwrap();
                     pm::render(&mut map, &cam, &()).unwrap().0
                 };
                 let (a, b) = (render(&whole), render(&split));
@@ -557,7 +557,7 @@ fn scene_arrays_split_across_bindings_give_the_same_answers() {
             }
         }
         let o = PhotonOptions { photons: 4000, passes: 1, index: IndexKind::Kd, ..Default::default() };
-        let e = PhotonMap::new(&split, Accel::kd(Algorithm::Stack), Some(&tree), scene.surface_area(), o).err().expect("the kd index over split nodes is refused");
+        let e = PhotonMap::new(&split, Accel::kd(Algorithm::Stack), Some(&tree), &scene, o).err().expect("the kd index over split nodes is refused");
         assert!(format!("{e:#}").contains("use the grid index"), "{e:#}");
     }
 }

@@ -221,7 +221,7 @@ fn photon_passes_continue_each_pixels_sequence() {
     let mut errs = [0.0f64; 2];
     for (k, sampler) in [SamplerKind::Sobol, SamplerKind::Independent].into_iter().enumerate() {
         let o = PhotonOptions { photons: 1 << 15, passes: 16, eye_samples: 4, sampler, ..Default::default() };
-        let mut map = PhotonMap::new(&t, accel, Some(&tree), scene.surface_area(), o).unwrap();
+        let mut map = PhotonMap::new(&t, accel, Some(&tree), &scene, o).unwrap();
         errs[k] = rel_rmse(&pm::render(&mut map, &cam, &()).unwrap().0, &reference);
     }
     eprintln!("photon mapping, 16 passes × 4: Sobol {:.3} %, independent {:.3} %", errs[0] * 100.0, errs[1] * 100.0);

@@ -49,7 +49,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     let tracer = Tracer::new(rt, &scene, Some(&tree))?;
     let o = PhotonOptions { passes, photons: if rt.is_native() { 1 << 16 } else { 1 << 20 }, ..Default::default() };
-    let mut map = PhotonMap::new(&tracer, Accel::parse("shortstack")?, Some(&tree), scene.surface_area(), o)?;
+    let mut map = PhotonMap::new(&tracer, Accel::parse("shortstack")?, Some(&tree), &scene, o)?;
     let cam = scene.camera.to_pod(size, size);
     let progress = Quarters { total: Cell::new(0), done: Cell::new(0) };
     let (img, stats) = photon::render(&mut map, &cam, &progress)?;

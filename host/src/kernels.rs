@@ -1362,3 +1362,76 @@ impl Kernel for TracePaths<'_> {
         (self.cpu)(self, ts)
     }
 }
+
+/// A gather-point marking kernel's native twin over items `ts`.
+type MarkRun<'a> = fn(&MarkEdges<'a>, std::ops::Range<u32>);
+
+fn run_marks<'a, M: Method>(k: &MarkEdges<'a>, ts: std::ops::Range<u32>)
+where
+    M::Accel<'a>: View<'a>,
+{
+    // SAFETY: called by the native runtime during the dispatch of this pass, which holds its
+    // bindings; item t writes paths[t] only.
+    unsafe {
+        let p = &k.params;
+        let accel = M::Accel::view(&k.scene, Aabb { min: p.bounds_min, max: p.bounds_max });
+        let (open_edges, rays, mut paths) = (k.open_edges.host(), k.rays.host(), k.paths.host_store());
+        for t in ts {
+            photon::mark_edges::<M, HostStore<'a, PathState>>(t, p, &accel, open_edges, rays, &mut paths)
+        }
+    }
+}
+
+/// Marks the gather points whose global-map disc (radius `params.radius[0]`) reaches past
+/// their surface (`photon::mark_edges`): triangles found by brute force, the kd-tree (one walk
+/// for every kd traversal) or the BVH.
+pub struct MarkEdges<'a> {
+    /// The paths (`count`), the radius, the scene box.
+    pub params: IndexParams,
+    /// The scene searched.
+    pub scene: SceneBinds<'a>,
+    /// Each triangle's open edges (`photon::EdgeProbe`).
+    pub open_edges: &'a Buffer<u32>,
+    /// The paths' gather points.
+    pub rays: &'a Buffer<Ray>,
+    /// The paths, whose `PATH_NEAR_EDGE` bit is set or cleared.
+    pub paths: &'a Buffer<PathState>,
+    entry: &'static str,
+    cpu: MarkRun<'a>,
+}
+
+impl<'a> MarkEdges<'a> {
+    /// The kernel searching the structure `scene` binds with `method`'s structure (brute
+    /// force, the kd-tree whatever its traversal, or the BVH).
+    pub fn new(method: TraceMethod, params: IndexParams, scene: SceneBinds<'a>, open_edges: &'a Buffer<u32>, rays: &'a Buffer<Ray>, paths: &'a Buffer<PathState>) -> Self {
+        let (entry, cpu): (&'static str, MarkRun<'a>) = match method {
+            TraceMethod::Brute => ("edge_points_brute", run_marks::<Brute>),
+            TraceMethod::Single(_) | TraceMethod::Packet(_) => ("edge_points_kd", run_marks::<Kd<kdray_shared::kdtree::Full>>),
+            TraceMethod::Bvh => ("edge_points_bvh", run_marks::<Wide>),
+        };
+        MarkEdges { params, scene, open_edges, rays, paths, entry, cpu }
+    }
+}
+
+impl Kernel for MarkEdges<'_> {
+    fn entry(&self) -> Cow<'static, str> {
+        self.entry.into()
+    }
+    fn params(&self) -> &[u8] {
+        bytemuck::bytes_of(&self.params)
+    }
+    fn bindings(&self) -> Vec<Bind<'_>> {
+        let mut b = self.scene.binds();
+        b.extend([read("open_edges", self.open_edges), read("rays", self.rays), write("paths", self.paths)]);
+        b
+    }
+    fn threads(&self) -> u32 {
+        self.params.count
+    }
+    fn run(&self, t: u32) {
+        self.run_many(t..t + 1)
+    }
+    fn run_many(&self, ts: std::ops::Range<u32>) {
+        (self.cpu)(self, ts)
+    }
+}

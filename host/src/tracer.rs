@@ -160,6 +160,12 @@ impl<'r> Tracer<'r> {
         Ok(self)
     }
 
+    /// Whether `scene` has the triangles this tracer was made with (vertices, materials and
+    /// faces, in order).
+    pub fn holds(&self, scene: &Scene) -> bool {
+        scene.triangles.len() as u64 == self.tri_count && geometry_fingerprint(scene.triangles.iter()) == self.tri_fingerprint
+    }
+
     /// The scene arrays held in more than one buffer (larger than one storage binding), with
     /// their part counts: e.g. `triangles in 2 buffers, kd-tree nodes in 3`; `None` if all are
     /// whole.

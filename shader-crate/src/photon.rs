@@ -181,3 +181,47 @@ photon_paths!(photon_paths_brute, Brute, 1, nodes, nodes1, nodes2: KdNode, prims
 photon_paths!(photon_paths_stack, Kd<Full>, 1, nodes, nodes1, nodes2: KdNode, prims, prims1, prims2: u32, kd_view);
 photon_paths!(photon_paths_shortstack3, Kd<Short<3>>, 1, nodes, nodes1, nodes2: KdNode, prims, prims1, prims2: u32, kd_view);
 photon_paths!(photon_paths_bvh, Wide, 3, bvh, bvh1, bvh2: BvhNode, bvh_tris, bvh_tris1, bvh_tris2: TriWords, bvh_view);
+
+/// One entry point running `photon::mark_edges::<$m>` (which gather points' discs reach past
+/// their surface); `$a`, `$b` are the structure's two buffers (kd: `nodes`, `prims`; BVH:
+/// `bvh`, `bvh_tris`) and `$view` makes the structure's view of them. Every kd traversal shares
+/// the kd-tree's one (`kdtree::near`).
+macro_rules! edge_points {
+    ($name:ident, $m:ty, $id:literal, $a:ident, $a1:ident, $a2:ident: $at:ty, $b:ident, $b1:ident, $b2:ident: $bt:ty, $view:ident) => {
+        #[spirv(compute(threads(64)))]
+        pub fn $name(
+            #[spirv(global_invocation_id)] id: UVec3,
+            #[spirv(num_workgroups)] groups: UVec3,
+            #[spirv(push_constant)] params: &IndexParams,
+            #[spirv(spec_constant(id = 0))] split_tris: u32,
+            #[spirv(spec_constant(id = $id))] split: [u32; 2],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] tris: &[Triangle],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] tris1: &[Triangle],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] tris2: &[Triangle],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] $a: &[$at],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] $a1: &[$at],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] $a2: &[$at],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] $b: &[$bt],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] $b1: &[$bt],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] $b2: &[$bt],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 9)] open_edges: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 10)] rays: &[Ray],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 11)] paths: &mut [PathState],
+        ) {
+            let tris = parts(split_tris, tris, tris1, tris2);
+            // Nothing is near an edge in a scene without triangles. (Also keeps the BVH entry's
+            // triangle bindings, which its search does not read: without them, the first three,
+            // lavapipe ran the entry point as a no-op — 2026-12-03, Mesa 22.3.6.)
+            if tris.is_empty() {
+                return;
+            }
+            let (a, b) = (parts(split[0], $a, $a1, $a2), parts(split[1], $b, $b1, $b2));
+            let accel = crate::$view(Aabb { min: params.bounds_min, max: params.bounds_max }, tris, a, b);
+            photon::mark_edges::<$m, _>(crate::item(id, groups), params, &accel, open_edges, rays, paths);
+        }
+    };
+}
+
+edge_points!(edge_points_brute, Brute, 1, nodes, nodes1, nodes2: KdNode, prims, prims1, prims2: u32, kd_view);
+edge_points!(edge_points_kd, Kd<Full>, 1, nodes, nodes1, nodes2: KdNode, prims, prims1, prims2: u32, kd_view);
+edge_points!(edge_points_bvh, Wide, 3, bvh, bvh1, bvh2: BvhNode, bvh_tris, bvh_tris1, bvh_tris2: TriWords, bvh_view);

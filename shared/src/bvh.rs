@@ -31,7 +31,7 @@
 //! * every loop is bounded by the node count; invalid rays (`Ray::is_valid`) are misses.
 use crate::aabb::{intersect_box, inv_dir, Aabb};
 use crate::pod::Triangle;
-use crate::query::Query;
+use crate::query::{Near, Query};
 use crate::ray::Ray;
 use crate::stats::Stats;
 use crate::triangle::ShearedRay;
@@ -392,4 +392,83 @@ pub fn traverse<Q: Query, S: Stats>(bvh: &Bvh, ray: &Ray, q: &mut Q, stats: &mut
             nodes = unsafe { stack[sp].assume_init() };
         }
     }
+}
+
+/// The hit mask (as `intersect_children`'s, octant 0) of `node`'s children whose stored boxes
+/// overlap the box `lo`..`hi`, touching included. Written out per slot, as `fast_children`
+/// (an empty slot contributes no bits).
+#[inline(always)]
+fn overlapping_children(node: &BvhNode, lo: [f32; 3], hi: [f32; 3]) -> u32 {
+    let bits = SlotBits::new(node, 0);
+    let child = |s: u32| -> u32 {
+        let (min, max) = node.child_box(s);
+        if min[0] <= hi[0] && min[1] <= hi[1] && min[2] <= hi[2] && max[0] >= lo[0] && max[1] >= lo[1] && max[2] >= lo[2] {
+            bits.get(s)
+        } else {
+            0
+        }
+    };
+    child(0) | child(1) | child(2) | child(3) | child(4) | child(5) | child(6) | child(7)
+}
+
+/// Whether a triangle of a leaf whose box overlaps the box `lo`..`hi` answers `q`
+/// (`query::Near`): `traverse`'s walk of groups (octant 0), children by box overlap, every
+/// leaf triangle offered (no early end). Written apart from `traverse`: one walk taking the
+/// query through a walker struct made the NVIDIA driver 580's compiler crash on this kernel.
+#[inline(always)]
+pub fn near<N: Near>(bvh: &Bvh, lo: [f32; 3], hi: [f32; 3], q: &N) -> bool {
+    let n_nodes = bvh.nodes.len() as u32;
+    let n_tris = bvh.tris.len() as u32;
+    let mut found = false;
+    if n_nodes == 0 {
+        return found;
+    }
+    // Not initialised: entries below `sp` are written before read.
+    let mut stack = [MaybeUninit::<[u32; 2]>::uninit(); MAX_BVH_DEPTH];
+    let mut sp = 0usize;
+    let mut nodes = [0u32, 1 << 31];
+    // Every step enters one node, each node at most once.
+    let max_steps = n_nodes.min(u32::MAX - 1) + 1;
+    let mut steps = 0u32;
+    while steps < max_steps {
+        steps += 1;
+        let mut tris = [0u32, 0u32];
+        if nodes[1] > 0x00ff_ffff {
+            let bit = 31 - nodes[1].leading_zeros();
+            let imask = nodes[1] & 0xff;
+            nodes[1] &= !(1u32 << bit);
+            let index = nodes[0] + (imask & ((1u32 << (bit - 24)) - 1)).count_ones();
+            if nodes[1] > 0x00ff_ffff && sp < MAX_BVH_DEPTH {
+                stack[sp] = MaybeUninit::new(nodes);
+                sp += 1;
+            }
+            if index >= n_nodes {
+                return found;
+            }
+            // SAFETY: index < n_nodes, checked above.
+            let node = unsafe { bvh.nodes.get_unchecked(index as usize) };
+            let hits = overlapping_children(&node, lo, hi);
+            nodes = [node.child_base(), (hits & 0xff00_0000) | node.imask()];
+            tris = [node.tri_base(), hits & 0x00ff_ffff];
+        }
+        while tris[1] != 0 {
+            let k = tris[0] + tris[1].trailing_zeros();
+            tris[1] &= tris[1] - 1;
+            if k >= n_tris {
+                return found;
+            }
+            // SAFETY: k < n_tris, checked above.
+            let tri = unsafe { bvh.tris.get_unchecked(k as usize) }.triangle();
+            found |= q.test(tri._pad, &tri);
+        }
+        if nodes[1] <= 0x00ff_ffff {
+            if sp == 0 {
+                return found;
+            }
+            sp -= 1;
+            // SAFETY: entry sp < the pushes' count was written by the push that made it.
+            nodes = unsafe { stack[sp].assume_init() };
+        }
+    }
+    found
 }

@@ -189,3 +189,50 @@ pub fn direction_around(axis: [f32; 3], cos_theta: f32, u: f32) -> [f32; 3] {
 pub fn exp2i(k: i32) -> f32 {
     f32::from_bits(((k + 127) as u32) << 23)
 }
+
+/// Squared distance from `p` to the segment `a`–`b` (a degenerate segment: to `a`).
+#[inline(always)]
+pub fn dist2_point_segment(p: [f32; 3], a: [f32; 3], b: [f32; 3]) -> f32 {
+    let ab = sub3(b, a);
+    let l2 = dot3(ab, ab);
+    let t = if l2 > 0.0 { (dot3(sub3(p, a), ab) / l2).max(0.0).min(1.0) } else { 0.0 };
+    let d = sub3(p, add3(a, scale3(ab, t)));
+    dot3(d, d)
+}
+
+/// Squared distance from `p` to the triangle `a`, `b`, `c` (its closest point): the region of
+/// the triangle's plane `p` projects into — a vertex's, an edge's or the face's — from the
+/// signs of the projections on the edges (barycentric Voronoi regions).
+#[inline(always)]
+pub fn dist2_point_triangle(p: [f32; 3], a: [f32; 3], b: [f32; 3], c: [f32; 3]) -> f32 {
+    let (ab, ac, ap) = (sub3(b, a), sub3(c, a), sub3(p, a));
+    let (d1, d2) = (dot3(ab, ap), dot3(ac, ap));
+    let bp = sub3(p, b);
+    let (d3, d4) = (dot3(ab, bp), dot3(ac, bp));
+    let cp = sub3(p, c);
+    let (d5, d6) = (dot3(ab, cp), dot3(ac, cp));
+    // Twice the signed areas of the sub-triangles opposite c, b, a.
+    let (vc, vb, va) = (d1 * d4 - d3 * d2, d5 * d2 - d1 * d6, d3 * d6 - d5 * d4);
+    // A degenerate triangle (zero area in f32; the scene loader drops exact ones) takes a
+    // vertex: no division by zero, and no early return (the NVIDIA driver 580's compiler
+    // crashed on one in this function).
+    let s = va + vb + vc;
+    let inv = if s > 0.0 { 1.0 / s } else { 0.0 };
+    let q = if d1 <= 0.0 && d2 <= 0.0 {
+        a
+    } else if d3 >= 0.0 && d4 <= d3 {
+        b
+    } else if d6 >= 0.0 && d5 <= d6 {
+        c
+    } else if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        add3(a, scale3(ab, d1 / (d1 - d3)))
+    } else if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        add3(a, scale3(ac, d2 / (d2 - d6)))
+    } else if va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0 {
+        add3(b, scale3(sub3(c, b), (d4 - d3) / ((d4 - d3) + (d5 - d6))))
+    } else {
+        add3(a, add3(scale3(ab, vb * inv), scale3(ac, vc * inv)))
+    };
+    let d = sub3(p, q);
+    dot3(d, d)
+}

@@ -21,19 +21,20 @@
 //! (bounces): independent ones keyed by (pass seed, photon), or points of the render's Sobol
 //! sequences at (pass, photon). Either way a pass is a function of its index and the scene
 //! only, so passes can run anywhere and be summed.
-use crate::kdtree::KdNode;
+use crate::kdtree::{leaves_in_box, KdNode};
 use bytemuck::{Pod, Zeroable};
 use glam::UVec4;
-use crate::query::{Answer, Closest, Query};
+use crate::query::{Answer, Closest, Near, Query};
 use crate::trace::Method;
 use crate::kernel::{AtomicStore, Store};
 use crate::math::{
-    add3, cosine_direction, cross3, direction_around, dot3, exp2i, floor_u32, fract_pos, mul3, normalize3, scale3, sub3,
+    add3, cosine_direction, cross3, direction_around, dist2_point_segment, dist2_point_triangle, dot3, exp2i, floor_u32, fract_pos, mul3,
+    normalize3, scale3, sub3,
 };
 use crate::parts::Parts;
 use crate::pod::{
     Hit, IndexParams, LeafCells, Light, Material, PathState, Photon, PhotonParams, PhotonPath, SortParams, Triangle, FILTER_CONE, INDEX_KD,
-    FILTER_EPANECHNIKOV, GATHER_EDGES, GATHER_LISTED, LIGHT_POINT, LIGHT_SPOT, MAT_MIRROR, PATH_GATHER, PHOTON_ACTIVE, PHOTON_SPECULAR_ONLY,
+    FILTER_EPANECHNIKOV, GATHER_EDGES, GATHER_LISTED, LIGHT_POINT, LIGHT_SPOT, MAT_MIRROR, PATH_GATHER, PATH_NEAR_EDGE, PHOTON_ACTIVE, PHOTON_SPECULAR_ONLY,
     PHOTON_STORE_DIRECT,
 };
 use crate::ray::Ray;
@@ -652,32 +653,12 @@ impl PhotonIndex for KdCells<'_> {
     fn visit<V: CellVisitor>(&self, x: [f32; 3], r: f32, map: u32, sorted: &SortedPhotons, v: &mut V) {
         let lo = sub3(x, [r; 3]);
         let hi = add3(x, [r; 3]);
-        let mut stack = [0u32; KD_STACK];
-        let mut top = 1usize;
-        let mut guard = 0usize;
-        let limit = self.nodes.len() + 1;
-        while top > 0 && guard < limit {
-            guard += 1;
-            top -= 1;
-            let node = stack[top] as usize;
-            let nd = self.nodes[node];
-            if !nd.is_leaf() {
-                let c = nd.first_child();
-                let (a, s) = (nd.axis(), nd.split());
-                if hi[a] >= s && top < KD_STACK {
-                    stack[top] = c + 1;
-                    top += 1;
-                }
-                if lo[a] < s && top < KD_STACK {
-                    stack[top] = c;
-                    top += 1;
-                }
-                continue;
-            }
+        let nodes = self.nodes;
+        leaves_in_box(nodes.len(), |i| nodes[i], lo, hi, |node, _| {
             let l = &self.leaves[node];
             let d = dims(l);
             if d[0] == 0 {
-                continue;
+                return true;
             }
             let a = [leaf_coord(lo[0], l.lo[0], l.hi[0], d[0]), leaf_coord(lo[1], l.lo[1], l.hi[1], d[1]), leaf_coord(lo[2], l.lo[2], l.hi[2], d[2])];
             let b = [leaf_coord(hi[0], l.lo[0], l.hi[0], d[0]), leaf_coord(hi[1], l.lo[1], l.hi[1], d[1]), leaf_coord(hi[2], l.lo[2], l.hi[2], d[2])];
@@ -692,7 +673,8 @@ impl PhotonIndex for KdCells<'_> {
                 }
                 z += 1;
             }
-        }
+            true
+        });
     }
 }
 
@@ -783,8 +765,7 @@ pub fn place<W: Store<PhotonWord> + ?Sized, P: Store<u32> + ?Sized>(
 // ---------------------------------------------------------------------------------------------
 // Gather
 
-/// Sums the photons of visited cells within `r2` of `x` on the side `n`, and counts those
-/// within `r2` on surfaces of other orientations.
+/// Sums the photons of visited cells within `r2` of `x` on the side `n`.
 struct Sum {
     x: [f32; 3],
     n: [f32; 3],
@@ -792,7 +773,6 @@ struct Sum {
     filter: u32,
     sum: [f32; 3],
     found: u32,
-    other: u32,
 }
 
 impl Sum {
@@ -801,20 +781,16 @@ impl Sum {
     fn add(&mut self, w: UVec4, j: u32, sorted: &SortedPhotons) {
         let d = sub3([f32::from_bits(w.x), f32::from_bits(w.y), f32::from_bits(w.z)], self.x);
         let d2 = dot3(d, d);
-        if d2 <= self.r2 {
-            if dot3(decode_oct(w.w & 0xffff, 8), self.n) <= 0.5 {
-                self.other += 1;
+        if d2 <= self.r2 && dot3(decode_oct(w.w & 0xffff, 8), self.n) > 0.5 {
+            let k = if self.filter == FILTER_CONE {
+                3.0 * (1.0 - crate::math::sqrt(d2 / self.r2))
+            } else if self.filter == FILTER_EPANECHNIKOV {
+                2.0 * (1.0 - d2 / self.r2)
             } else {
-                let k = if self.filter == FILTER_CONE {
-                    3.0 * (1.0 - crate::math::sqrt(d2 / self.r2))
-                } else if self.filter == FILTER_EPANECHNIKOV {
-                    2.0 * (1.0 - d2 / self.r2)
-                } else {
-                    1.0
-                };
-                self.sum = add3(self.sum, scale3(decode_rgb9e5(sorted.powers[j as usize]), k));
-                self.found += 1;
-            }
+                1.0
+            };
+            self.sum = add3(self.sum, scale3(decode_rgb9e5(sorted.powers[j as usize]), k));
+            self.found += 1;
         }
     }
 }
@@ -840,8 +816,6 @@ pub struct Estimate {
     pub irradiance: [f32; 3],
     /// Photons that counted.
     pub found: u32,
-    /// Photons within the radius on surfaces of other orientations.
-    pub other: u32,
 }
 
 /// Irradiance at `x` (normal `n` on the viewing side) from one map: Σ w·Φ / (π r²) over the
@@ -849,16 +823,16 @@ pub struct Estimate {
 #[inline(always)]
 pub fn irradiance<I: PhotonIndex>(index: &I, p: &IndexParams, sorted: &SortedPhotons, x: [f32; 3], n: [f32; 3], map: u32) -> Estimate {
     let r = p.radius[map as usize];
-    let mut s = Sum { x, n, r2: r * r, filter: p.filter, sum: [0.0; 3], found: 0, other: 0 };
+    let mut s = Sum { x, n, r2: r * r, filter: p.filter, sum: [0.0; 3], found: 0 };
     index.visit(x, r, map, sorted, &mut s);
-    Estimate { irradiance: scale3(s.sum, 1.0 / (core::f32::consts::PI * r * r)), found: s.found, other: s.other }
+    Estimate { irradiance: scale3(s.sum, 1.0 / (core::f32::consts::PI * r * r)), found: s.found }
 }
 
 /// Path `i` (or, under `GATHER_LISTED`, the `i`-th path listed in `points`): if it ended at a
 /// gather point, adds the reflected radiance the photons of maps `p.first_map..p.maps` give
 /// (throughput already holds albedo/π) to its radiance (the film then adds the paths up).
-/// Under `GATHER_EDGES` a point near an edge takes the caustic map only, stays a gather point
-/// (for the final gather) and is listed in `next_points` (its count in `next_points[0]`,
+/// Under `GATHER_EDGES` a point near an edge (marked `PATH_NEAR_EDGE` by `mark_edges`) takes
+/// the caustic map only, stays a gather point (for the final gather) and is listed in `next_points` (its count in `next_points[0]`,
 /// cleared before; a list without room for every path, one element, lists none); every other
 /// point stops being one. A list: element 0 the count, then the paths' indices.
 #[inline(always)]
@@ -887,16 +861,12 @@ pub fn gather<I: PhotonIndex, P: Store<PathState> + ?Sized, L: Store<u32> + Atom
     if path.flags & PATH_GATHER != 0 {
         let g = rays[k];
         let edges = p.gather_flags & GATHER_EDGES != 0;
+        let near_edge = edges && path.flags & PATH_NEAR_EDGE != 0;
         let mut e = [0.0; 3];
-        let mut near_edge = false;
-        let mut map = p.first_map;
+        // A point near an edge leaves the global map (map 0) to the final gather.
+        let mut map = if near_edge { p.first_map.max(1) } else { p.first_map };
         while map < p.maps {
-            let m = irradiance(index, p, sorted, g.origin, g.dir, map);
-            if edges && map == 0 && m.other > 0 {
-                near_edge = true;
-            } else {
-                e = add3(e, m.irradiance);
-            }
+            e = add3(e, irradiance(index, p, sorted, g.origin, g.dir, map).irradiance);
             map += 1;
         }
         path.radiance = add3(path.radiance, mul3(path.throughput, e));
@@ -911,6 +881,79 @@ pub fn gather<I: PhotonIndex, P: Store<PathState> + ?Sized, L: Store<u32> + Atom
                 path.flags &= !PATH_GATHER;
             }
         }
+        paths.store(k, path);
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Edges
+
+/// Whether a gather disc (centre `x`, unit normal `n`, radius² `r2`) reaches past its surface:
+/// a triangle within the radius faces another way (normals more than 60° apart, either side:
+/// a corner or a crease), or an open edge lies within it (an edge no other triangle shares:
+/// where a surface ends). There a density estimate counts photons over less than πr² of
+/// surface, and is biased low. A `Near` query over the scene's triangles; `open_edges[t]` has
+/// bit k set where edge k of triangle t (from vertex k to vertex k + 1 mod 3) is open.
+pub struct EdgeProbe<'a> {
+    /// The disc's centre.
+    pub x: [f32; 3],
+    /// Its normal (unit).
+    pub n: [f32; 3],
+    /// Its radius, squared.
+    pub r2: f32,
+    /// Each triangle's open edges (bits 0..3).
+    pub open_edges: &'a [u32],
+}
+
+impl Near for EdgeProbe<'_> {
+    #[inline(always)]
+    fn test(&self, prim: u32, tri: &Triangle) -> bool {
+        if dist2_point_triangle(self.x, tri.v0, tri.v1, tri.v2) > self.r2 {
+            return false;
+        }
+        let nt = cross3(sub3(tri.v1, tri.v0), sub3(tri.v2, tri.v0));
+        let c = dot3(nt, self.n);
+        // |cos| ≤ 1/2, without normalising nt.
+        let crease = 4.0 * c * c <= dot3(nt, nt);
+        let open = if (prim as usize) < self.open_edges.len() { self.open_edges[prim as usize] } else { 0 };
+        let r2 = self.r2;
+        crease
+            || (open & 1 != 0 && dist2_point_segment(self.x, tri.v0, tri.v1) <= r2)
+            || (open & 2 != 0 && dist2_point_segment(self.x, tri.v1, tri.v2) <= r2)
+            || (open & 4 != 0 && dist2_point_segment(self.x, tri.v2, tri.v0) <= r2)
+    }
+}
+
+/// Whether the disc of radius `r` at `x` (unit normal `n`) reaches past its surface
+/// (`EdgeProbe`), from the triangles `M` finds near the disc's box.
+#[inline(always)]
+pub fn near_edge<M: Method>(accel: &M::Accel<'_>, open_edges: &[u32], x: [f32; 3], n: [f32; 3], r: f32) -> bool {
+    M::near(accel, sub3(x, [r; 3]), add3(x, [r; 3]), &EdgeProbe { x, n, r2: r * r, open_edges })
+}
+
+/// Path `i`: if it ended at a gather point, marks it `PATH_NEAR_EDGE` where the global map's
+/// disc there (radius `p.radius[0]`) reaches past its surface (`near_edge`), and clears the
+/// mark elsewhere; the next gather under `GATHER_EDGES` leaves the marked points to the final
+/// gather. Geometry alone decides, not photons: a corner the photons seldom reach is found
+/// as surely as a lit one.
+#[inline(always)]
+pub fn mark_edges<M: Method, P: Store<PathState> + ?Sized>(
+    i: u32,
+    p: &IndexParams,
+    accel: &M::Accel<'_>,
+    open_edges: &[u32],
+    rays: &[Ray],
+    paths: &mut P,
+) {
+    if i >= p.count {
+        return;
+    }
+    let k = i as usize;
+    let mut path = paths.load(k);
+    if path.flags & PATH_GATHER != 0 {
+        let g = rays[k];
+        let near = near_edge::<M>(accel, open_edges, g.origin, g.dir, p.radius[0]);
+        path.flags = (path.flags & !PATH_NEAR_EDGE) | if near { PATH_NEAR_EDGE } else { 0 };
         paths.store(k, path);
     }
 }

@@ -295,6 +295,8 @@ pub const PATH_ACTIVE: u32 = 1;
 pub const PATH_SPECULAR: u32 = 2;
 /// The path ended at a gather point, left in its ray slot (`shade::gather_point`).
 pub const PATH_GATHER: u32 = 4;
+/// `PathState::flags`: the gather point's disc reaches past its surface (`photon::mark_edges`).
+pub const PATH_NEAR_EDGE: u32 = 16;
 /// Diffuse bounces so far, from this bit up.
 pub const PATH_DIFFUSE_SHIFT: u32 = 8;
 
@@ -449,12 +451,11 @@ pub struct IndexParams {
     pub gather_flags: u32,
 }
 
-/// `IndexParams::gather_flags`: final gathering near edges only. A gather point whose disc
-/// holds a photon of the global map on a surface of another orientation (normals more than 60°
-/// apart: a corner or an edge within the radius, where the disc reaches past its surface and
-/// the estimate is biased, or the back of thin geometry) takes
-/// only the caustic map and stays a gather point, to be resumed by the final gather; any other
-/// takes every map and ends.
+/// `IndexParams::gather_flags`: final gathering near edges only. A gather point marked
+/// `PATH_NEAR_EDGE` (`photon::mark_edges`: its disc reaches a surface of another orientation, a
+/// corner or a crease, or an open edge, where the disc reaches past its surface and the
+/// estimate is biased low) takes only the caustic map and stays a gather point, to be resumed
+/// by the final gather; any other takes every map and ends.
 pub const GATHER_EDGES: u32 = 2;
 /// `IndexParams::gather_flags`: the gather's items are the paths listed in its `points`
 /// buffer (item i gathers for path `points[1 + i]`, i < `points[0]`), as the first gather of

@@ -136,6 +136,17 @@ impl Query for AnyHit {
     }
 }
 
+/// A search of the triangles near a point rather than along a ray (`Method::near`): the
+/// structure offers it every triangle whose leaf (kd cell, BVH leaf box) overlaps the box
+/// `lo`..`hi` it was asked about — possibly more, never fewer — and reports whether any
+/// answered yes. The test reads the query and changes nothing (an immutable query holding a
+/// buffer: the NVIDIA driver 580's compiler crashed on a mutable one, lavapipe lost its
+/// answer), and the search does not end early.
+pub trait Near {
+    /// Whether triangle `prim` (its index in the scene) answers the query.
+    fn test(&self, prim: u32, tri: &Triangle) -> bool;
+}
+
 /// What a query stores per ray in a result buffer: the hit (closest hit) or 1/0 (any hit).
 pub trait Answer {
     /// The value stored per ray.

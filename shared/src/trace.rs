@@ -10,7 +10,7 @@ use crate::kdtree::{intersect_leaves, record_leaves, Full, KdNode, KdTree, LeafR
 use crate::kernel::Store;
 use crate::parts::Parts;
 use crate::pod::{TraceParams, Triangle};
-use crate::query::{Answer, Prims, Query};
+use crate::query::{Answer, Near, Prims, Query};
 use crate::ray::Ray;
 use crate::stats::NoStats;
 use core::marker::PhantomData;
@@ -22,6 +22,9 @@ pub trait Method {
     type Accel<'a>: Copy;
     /// Answers `q` for `ray` over `accel`.
     fn find<Q: Query + BruteForce>(accel: &Self::Accel<'_>, ray: &Ray, q: &mut Q);
+    /// Whether any triangle near the box `lo`..`hi` (`query::Near`: at least those whose
+    /// leaves overlap it) answers `q`.
+    fn near<N: Near>(accel: &Self::Accel<'_>, lo: [f32; 3], hi: [f32; 3], q: &N) -> bool;
 }
 
 /// The brute-force oracle (every triangle; the tree is not used).
@@ -31,6 +34,16 @@ impl Method for Brute {
     #[inline(always)]
     fn find<Q: Query + BruteForce>(tree: &KdTree, ray: &Ray, q: &mut Q) {
         q.brute(ray, &tree.tris)
+    }
+    #[inline(always)]
+    fn near<N: Near>(tree: &KdTree, _lo: [f32; 3], _hi: [f32; 3], q: &N) -> bool {
+        let mut found = false;
+        let mut j = 0;
+        while j < tree.tris.len() {
+            found |= q.test(j as u32, &tree.tris.get(j));
+            j += 1;
+        }
+        found
     }
 }
 
@@ -42,6 +55,10 @@ impl<T: Traversal> Method for Kd<T> {
     fn find<Q: Query + BruteForce>(tree: &KdTree, ray: &Ray, q: &mut Q) {
         T::run(tree, ray, q, &mut NoStats)
     }
+    #[inline(always)]
+    fn near<N: Near>(tree: &KdTree, lo: [f32; 3], hi: [f32; 3], q: &N) -> bool {
+        crate::kdtree::near(tree, lo, hi, q)
+    }
 }
 
 /// The compressed 8-wide BVH's traversal (`bvh::traverse`).
@@ -51,6 +68,10 @@ impl Method for Wide {
     #[inline(always)]
     fn find<Q: Query + BruteForce>(bvh: &Bvh, ray: &Ray, q: &mut Q) {
         crate::bvh::traverse(bvh, ray, q, &mut NoStats)
+    }
+    #[inline(always)]
+    fn near<N: Near>(bvh: &Bvh, lo: [f32; 3], hi: [f32; 3], q: &N) -> bool {
+        crate::bvh::near(bvh, lo, hi, q)
     }
 }
 

@@ -21,9 +21,10 @@
 //! checkpoint: passes are deterministic, so the image is the same).
 use super::path::{self, FrameBuffers, PathOptions};
 use super::{Progress, RenderOutput, SamplerKind};
-use crate::accel::Accel;
+use crate::accel::{Accel, Structure};
 use crate::kdtree::KdTreeData;
-use crate::kernels::{DispatchArgs, EmitPhotons, Film, Gather, IndexBinds, PhotonBounce, PhotonKeys, PlacePhotons, TracePhotons};
+use crate::kernels::{DispatchArgs, EmitPhotons, Film, Gather, IndexBinds, MarkEdges, PhotonBounce, PhotonKeys, PlacePhotons, TraceMethod, TracePhotons};
+use crate::scene::{open_edges, Scene};
 use crate::runtime::{cast, Buffer, Kernel, Pending, Runtime};
 use crate::sort::CountingSort;
 use crate::tracer::{LeafLists, Tracer};
@@ -99,7 +100,8 @@ pub struct PhotonOptions {
     /// film is read back, so that a pass that fails (a lost device, say) loses only the passes
     /// since (`PhotonStats::interrupted`). 0: after every pass.
     pub checkpoint_seconds: f64,
-    /// The first pass's gather radius (scene units); default: about 50 photons per gather.
+    /// The first pass's gather radius (scene units); default: about `PHOTONS_PER_GATHER` photons
+    /// per gather.
     pub radius: Option<f32>,
     /// The caustic map's radius relative to the global map's.
     pub caustic_radius: f32,
@@ -216,6 +218,12 @@ pub fn pass_radius(r0: f32, alpha: f32, pass: u32) -> f32 {
     r2.sqrt() as f32
 }
 
+/// Photons a first pass's gather finds on average where they spread evenly over the scene's
+/// surface: the default radius. 85 since the edges are found from the geometry (H200, 512²,
+/// equal time, radius 7 against 5.4 (50 photons): Cornell box 0.985 → 0.840 %, glass sphere
+/// 0.978 → 0.936 %; `docs/gpu-runs/2026-12-03-edge-geometry-h200.md`).
+pub const PHOTONS_PER_GATHER: f64 = 85.0;
+
 /// The photon map's device buffers and the scene-derived sizes.
 pub struct PhotonMap<'t> {
     t: &'t Tracer<'t>,
@@ -249,6 +257,8 @@ pub struct PhotonMap<'t> {
     /// The kd index: each leaf's box (host), the cell table, the tree's nodes on the device.
     kd: Option<(Vec<Option<([f32; 3], [f32; 3])>>, Buffer<LeafCells>, &'t Buffer<KdNode>)>,
     r0: f32,
+    /// Each triangle's open edges (`scene::open_edges`), with `FinalGather::Edges`.
+    open_edges: Option<Buffer<u32>>,
 }
 
 /// Every node's box if it is a leaf (walking from the root cell).
@@ -293,9 +303,13 @@ fn leaf_cells(boxes: &[Option<([f32; 3], [f32; 3])>], r: f32, budget: u64) -> Ve
 }
 
 impl<'t> PhotonMap<'t> {
-    /// Buffers for `o.photons` photons per pass; `tree` is needed for the kd index.
-    pub fn new(t: &'t Tracer<'t>, accel: Accel, tree: Option<&KdTreeData>, scene_area: f64, o: PhotonOptions) -> Result<Self> {
+    /// Buffers for `o.photons` photons per pass over `scene` (the one `t` was made with); `tree`
+    /// is needed for the kd index.
+    pub fn new(t: &'t Tracer<'t>, accel: Accel, tree: Option<&KdTreeData>, scene: &Scene, o: PhotonOptions) -> Result<Self> {
         t.check(accel)?;
+        if !t.holds(scene) {
+            bail!(InvalidInput: "the photon map's scene '{}' is not the one its tracer was made with", scene.name);
+        }
         if o.photons == 0 || o.eye_samples == 0 || o.passes == 0 {
             bail!(InvalidInput: "photon mapping needs at least one photon, pass and eye sample per pass");
         }
@@ -325,7 +339,12 @@ impl<'t> PhotonMap<'t> {
         let capacity = o.photons.saturating_mul(2).max(1024);
         let maps = if t.has_specular { 2 } else { 1 };
         let (lo, hi) = t.bounds();
-        let r0 = o.radius.unwrap_or_else(|| ((50.0 * scene_area) / (std::f64::consts::PI * o.photons as f64)).sqrt() as f32);
+        let r0 = o.radius.unwrap_or_else(|| ((PHOTONS_PER_GATHER * scene.surface_area()) / (std::f64::consts::PI * o.photons as f64)).sqrt() as f32);
+        // The open edges only where the final gather looks for edges.
+        let open_edges = match o.final_gather {
+            FinalGather::Edges => Some(rt.upload("open edges", &open_edges(&scene.triangles))?),
+            _ => None,
+        };
         let kd = match o.index {
             IndexKind::Grid => None,
             IndexKind::Kd => {
@@ -362,6 +381,7 @@ impl<'t> PhotonMap<'t> {
             tree_bounds: t.trace_bounds(),
             kd,
             r0,
+            open_edges,
             o,
         })
     }
@@ -579,6 +599,18 @@ impl<'t> PhotonMap<'t> {
         self.gather_with(IndexParams { first_map, ..self.index_params(pass, count) }, fb, gp, 0)
     }
 
+    /// Marks the gather points of pass `pass`'s `count` paths in `fb` whose global-map disc
+    /// reaches past their surface (`photon::mark_edges`), for the next gather's `GATHER_EDGES`.
+    pub fn mark_edges<'a>(&'a self, pass: u32, count: u32, fb: &'a FrameBuffers) -> Result<MarkEdges<'a>> {
+        let open_edges = self.open_edges.as_ref().ok_or_else(|| err!(InvalidInput: "edges are marked only for the final gather near edges"))?;
+        let method = match self.accel.structure {
+            Structure::Brute => TraceMethod::Brute,
+            Structure::KdTree => TraceMethod::Single(self.accel.traversal),
+            Structure::Bvh => TraceMethod::Bvh,
+        };
+        Ok(MarkEdges::new(method, self.index_params(pass, count), self.t.scene_binds(self.accel), open_edges, &fb.rays, &fb.paths))
+    }
+
     /// The first gather of `FinalGather::Edges`: every map, the points near edges kept for the
     /// final gather (`GATHER_EDGES`) and listed in `gp.list(0)` (cleared before).
     pub fn gather_edges<'a>(&'a self, pass: u32, count: u32, fb: &'a FrameBuffers, gp: &'a GatherPoints) -> Gather<'a> {
@@ -770,6 +802,7 @@ fn record_eye<'a>(c: &mut crate::runtime::Commands, map: &'a PhotonMap, p: &Rend
         FinalGather::Off => return rt.dispatch(c, &map.gather(pass, p.count, fb, gp) as &dyn Kernel),
         FinalGather::Edges => {
             gp.record_clear(rt, c, 0)?;
+            rt.dispatch(c, &map.mark_edges(pass, p.count, fb)?)?;
             rt.dispatch(c, &map.gather_edges(pass, p.count, fb, gp) as &dyn Kernel)?;
         }
         FinalGather::All if map.maps > 1 => rt.dispatch(c, &map.gather_maps(pass, p.count, fb, gp, 1) as &dyn Kernel)?,
@@ -787,6 +820,7 @@ fn record_eye<'a>(c: &mut crate::runtime::Commands, map: &'a PhotonMap, p: &Rend
         let again = level < levels;
         if again {
             gp.record_clear(rt, c, level)?;
+            rt.dispatch(c, &map.mark_edges(pass, p.count, fb)?)?;
         }
         let k = map.gather_level(pass, p.count, fb, gp, level, map.o.list_points, again);
         if map.o.list_points {

@@ -4,6 +4,7 @@ pub mod mitsuba;
 pub mod obj;
 pub mod procedural;
 
+use rayon::slice::ParallelSliceMut;
 use crate::error::{bail, Context, Result};
 use glam::Vec3;
 use std::path::Path;
@@ -556,4 +557,30 @@ fn in_file(spec: &str, r: Result<Scene>) -> Result<Scene> {
         }
         r => r,
     }
+}
+
+/// Each triangle's open edges: bit k set where its edge from vertex k to vertex k + 1 (mod 3)
+/// is shared by no other triangle (vertices compared by position, exactly, in either
+/// direction; −0 as 0): where a surface ends. The final gather near edges looks for them
+/// (`kdray_shared::photon::EdgeProbe`): a gather disc that reaches past one counts photons over
+/// less than its area.
+pub fn open_edges(triangles: &[Triangle]) -> Vec<u32> {
+    let point = |v: [f32; 3]| v.map(|c| (c + 0.0).to_bits());
+    let mut edges: Vec<([u32; 3], [u32; 3], u32)> = Vec::with_capacity(triangles.len() * 3);
+    for (i, t) in triangles.iter().enumerate() {
+        let v = [point(t.v0), point(t.v1), point(t.v2)];
+        for k in 0..3 {
+            let (a, b) = (v[k], v[(k + 1) % 3]);
+            let (a, b) = if a <= b { (a, b) } else { (b, a) };
+            edges.push((a, b, (i * 3 + k) as u32));
+        }
+    }
+    edges.par_sort_unstable_by(|x, y| (x.0, x.1).cmp(&(y.0, y.1)));
+    let mut open = vec![0u32; triangles.len()];
+    for run in edges.chunk_by(|x, y| (x.0, x.1) == (y.0, y.1)) {
+        if let [(_, _, e)] = run {
+            open[(e / 3) as usize] |= 1 << (e % 3);
+        }
+    }
+    open
 }

@@ -48,7 +48,7 @@ pub use stack::{Entry, ExitEntry, FullStack, NoStack, ShortStack, Stack, StackEn
 use crate::aabb::Aabb;
 use crate::parts::Parts;
 use crate::pod::Triangle;
-use crate::query::Prims;
+use crate::query::{Near, Prims};
 use bytemuck::{Pod, Zeroable};
 
 /// Deepest tree the builder produces; also the capacity of `FullStack`.
@@ -208,4 +208,61 @@ impl<'a> KdTree<'a> {
     pub fn prims(&self) -> Prims<'a> {
         Prims { index: self.prims, tris: self.tris }
     }
+}
+
+/// Capacity of `leaves_in_box`'s stack: it holds at most one pending child per level of a tree
+/// at most `MAX_DEPTH` deep.
+pub const BOX_STACK: usize = MAX_DEPTH + 16;
+
+/// Calls `leaf(i, node)` for every leaf of a tree of `n` nodes (`node(i)` reads node i) whose
+/// cell overlaps the box `lo`..`hi`, touching included (a triangle lying in a split plane may
+/// be in either child), until `leaf` returns false. Every node is entered at most once.
+#[inline(always)]
+pub fn leaves_in_box<F: Fn(usize) -> KdNode, L: FnMut(usize, KdNode) -> bool>(n: usize, node: F, lo: [f32; 3], hi: [f32; 3], mut leaf: L) {
+    let mut stack = [0u32; BOX_STACK];
+    let mut top = 1usize;
+    let mut guard = 0usize;
+    while top > 0 && guard < n {
+        guard += 1;
+        top -= 1;
+        let i = stack[top] as usize;
+        if i >= n {
+            return;
+        }
+        let nd = node(i);
+        if nd.is_leaf() {
+            if !leaf(i, nd) {
+                return;
+            }
+            continue;
+        }
+        let (c, a, s) = (nd.first_child(), nd.axis(), nd.split());
+        if hi[a] >= s && top < BOX_STACK {
+            stack[top] = c + 1;
+            top += 1;
+        }
+        if lo[a] <= s && top < BOX_STACK {
+            stack[top] = c;
+            top += 1;
+        }
+    }
+}
+
+/// Whether a triangle of a leaf whose cell overlaps the box `lo`..`hi` answers `q`
+/// (`query::Near`).
+#[inline(always)]
+pub fn near<N: Near>(t: &KdTree, lo: [f32; 3], hi: [f32; 3], q: &N) -> bool {
+    let (prims, tris) = (t.prims, t.tris);
+    let mut found = false;
+    leaves_in_box(t.nodes.len(), |i| t.nodes.get(i), lo, hi, |_, nd| {
+        let (first, count) = (nd.prim_offset() as usize, nd.prim_count() as usize);
+        let mut j = 0;
+        while j < count {
+            let p = prims.get(first + j);
+            found |= q.test(p, &tris.get(p as usize));
+            j += 1;
+        }
+        true
+    });
+    found
 }

@@ -224,7 +224,7 @@ pub enum Command {
         /// Stop after the pass that ends past this many seconds (photon).
         #[arg(long)]
         time_limit: Option<f64>,
-        /// The first pass's gather radius in scene units (photon); default: about 50 photons
+        /// The first pass's gather radius in scene units (photon); default: about 85 photons
         /// per gather.
         #[arg(long)]
         radius: Option<f32>,
@@ -631,7 +631,7 @@ pub fn run(cli: Cli) -> Result<()> {
                             photon_sampler: photon_sampler.kind(),
                             ..Default::default()
                         };
-                        let mut map = PhotonMap::new(&t, accel, tree, scene.surface_area(), o)?;
+                        let mut map = PhotonMap::new(&t, accel, tree, &scene, o)?;
                         let pb = progress_passes();
                         let (r, s) = pm::render(&mut map, &cam, &Bar(pb.clone()))?;
                         pb.finish_and_clear();

@@ -101,19 +101,18 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
         let bvh = kdray::bvh::try_build(&scene.triangles)?;
         let t = Tracer::new(rt, scene, Some(tree))?.with_bvh(&bvh)?;
         let speed_only = std::env::var("KDRAY_PHOTONS_SPEED_ONLY").is_ok_and(|v| v == "1");
-        let area = scene.surface_area();
         // Speed: one pass of `photons` photons, both indices.
         let mut row = vec![scene.name.clone(), scene.triangles.len().to_string(), photons.to_string()];
         let base = PhotonOptions { photons, passes: 1, final_gather: FinalGather::Off, ..Default::default() };
-        let split = PhotonMap::new(&t, accel, Some(tree), area, PhotonOptions { fused: false, ..base.clone() })?;
+        let split = PhotonMap::new(&t, accel, Some(tree), &scene, PhotonOptions { fused: false, ..base.clone() })?;
         let (rays, bounces) = split.count_bounces(0)?;
         let split_ms = time_recorded(rt, copies, &|c| split.record_trace(c, 0))?;
         drop(split);
-        let mut grid = PhotonMap::new(&t, accel, Some(tree), area, base.clone())?;
+        let mut grid = PhotonMap::new(&t, accel, Some(tree), &scene, base.clone())?;
         let stored = grid.trace_and_index(0)?;
         let trace_ms = time_recorded(rt, copies, &|c| grid.record_trace(c, 0))?;
         // The same photons through the wide BVH (the same bounces: it finds the kd-tree's hits).
-        let mut wide_map = PhotonMap::new(&t, Accel::BVH, Some(tree), area, base.clone())?;
+        let mut wide_map = PhotonMap::new(&t, Accel::BVH, Some(tree), &scene, base.clone())?;
         wide_map.trace_and_index(0)?;
         let bvh_trace_ms = time_recorded(rt, copies, &|c| wide_map.record_trace(c, 0))?;
         drop(wide_map);
@@ -131,7 +130,7 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
         };
         let p0 = PhotonParams { stride: grid.stride(photons), ..grid.photon_params(0) };
         let parts = [part(PhotonParams { light_count: 0, ..p0 })?, part(PhotonParams { max_bounces: 0, ..p0 })?, part(PhotonParams { capacity: 0, ..p0 })?];
-        let mut wide = PhotonMap::new(&t, accel, Some(tree), area, PhotonOptions { grid_window: 2, ..base.clone() })?;
+        let mut wide = PhotonMap::new(&t, accel, Some(tree), &scene, PhotonOptions { grid_window: 2, ..base.clone() })?;
         wide.trace_and_index(0)?;
         // The first steps alone, then the whole index: the gathers below read the index as the
         // last of these left it, and by segments a rerun of the offsets alone need not give
@@ -139,12 +138,12 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
         let steps: Vec<f64> = (1..=2).map(|s| time_recorded(rt, copies, &|c| grid.record_index_steps(c, 0, s))).collect::<Result<_>>()?;
         let index_grid = time_recorded(rt, copies, &|c| grid.record_index(c, 0))?;
         let (cells, slots) = grid.index_size();
-        let mut kd = PhotonMap::new(&t, accel, Some(tree), area, PhotonOptions { index: IndexKind::Kd, ..base.clone() })?;
+        let mut kd = PhotonMap::new(&t, accel, Some(tree), &scene, PhotonOptions { index: IndexKind::Kd, ..base.clone() })?;
         kd.trace_and_index(0)?;
         let index_kd = time_recorded(rt, copies, &|c| kd.record_index(c, 0))?;
         let cam = scene.camera.to_pod(o.size, o.size);
         let n = (o.size * o.size) as usize;
-        let mut fg_map = PhotonMap::new(&t, Accel::BVH, Some(tree), area, PhotonOptions { final_gather: FinalGather::All, ..base.clone() })?;
+        let mut fg_map = PhotonMap::new(&t, Accel::BVH, Some(tree), &scene, PhotonOptions { final_gather: FinalGather::All, ..base.clone() })?;
         fg_map.trace_and_index(0)?;
         let (eye_ms, bvh_eye_ms, gather_grid, gather_wide, gather_kd, fg_ms) = if t.batch_size(accel, n) >= n {
             let fb = FrameBuffers::new(&t, accel, n)?;
@@ -287,7 +286,7 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
             let mut pts = Vec::new();
             for &passes in &pass_counts {
                 let start = Instant::now();
-                let mut map = PhotonMap::new(&t, err_accel, Some(tree), area, PhotonOptions { passes, ..v.clone() })?;
+                let mut map = PhotonMap::new(&t, err_accel, Some(tree), &scene, PhotonOptions { passes, ..v.clone() })?;
                 let (img, _) = pm::render(&mut map, &cam, &hidden)?;
                 let secs = start.elapsed().as_secs_f64();
                 let (e, m) = error_of(&img, &reference);
