@@ -29,7 +29,7 @@ use crate::trace::Method;
 use crate::kernel::{AtomicStore, Store};
 use crate::math::{
     add3, cosine_direction, cross3, direction_around, dist2_point_segment, dist2_point_triangle, dot3, exp2i, floor_u32, fract_pos, mul3,
-    normalize3, scale3, sub3,
+    normalize3, scale3, sqrt, sub3,
 };
 use crate::parts::Parts;
 use crate::pod::{
@@ -469,7 +469,8 @@ pub trait PhotonIndex {
 /// place in the block (coordinates modulo w). Any w consecutive cells along an axis differ
 /// modulo w, so the cells of one query never share a bucket: each is visited once, with no
 /// bookkeeping. Smaller cells (w = 3) visit about half the area (9r² against 16r²) in more,
-/// smaller cells. A block's cells are sorted together, as one segment (`sort::segment_offsets`:
+/// smaller cells; smaller still (windows of 4 and 5) tested fewer photons but ran 10–25 %
+/// slower (H200, `docs/gpu-runs/2026-12-03-gather-order-h200.md`). A block's cells are sorted together, as one segment (`sort::segment_offsets`:
 /// its offsets at `offset_slot`), so that each row of a window within a block is one run.
 pub struct HashGrid {
     /// The scene box's minimum corner; cells are counted from one cell below it.
@@ -765,6 +766,16 @@ pub fn place<W: Store<PhotonWord> + ?Sized, P: Store<u32> + ?Sized>(
 // ---------------------------------------------------------------------------------------------
 // Gather
 
+/// Whether the photon of word `w` counts at a gather point `x` (unit normal `n`, radius²
+/// `r2`): within the radius, its surface's normal within 60° of `n` (photons on the back side
+/// or of another orientation never count). Also its distance² (the filters' argument).
+#[inline(always)]
+pub fn in_disc(w: UVec4, x: [f32; 3], n: [f32; 3], r2: f32) -> (bool, f32) {
+    let d = sub3([f32::from_bits(w.x), f32::from_bits(w.y), f32::from_bits(w.z)], x);
+    let d2 = dot3(d, d);
+    (d2 <= r2 && dot3(decode_oct(w.w & 0xffff, 8), n) > 0.5, d2)
+}
+
 /// Sums the photons of visited cells within `r2` of `x` on the side `n`.
 struct Sum {
     x: [f32; 3],
@@ -779,11 +790,10 @@ impl Sum {
     /// Photon `j`, whose word is `w`.
     #[inline(always)]
     fn add(&mut self, w: UVec4, j: u32, sorted: &SortedPhotons) {
-        let d = sub3([f32::from_bits(w.x), f32::from_bits(w.y), f32::from_bits(w.z)], self.x);
-        let d2 = dot3(d, d);
-        if d2 <= self.r2 && dot3(decode_oct(w.w & 0xffff, 8), self.n) > 0.5 {
+        let (counts, d2) = in_disc(w, self.x, self.n, self.r2);
+        if counts {
             let k = if self.filter == FILTER_CONE {
-                3.0 * (1.0 - crate::math::sqrt(d2 / self.r2))
+                3.0 * (1.0 - sqrt(d2 / self.r2))
             } else if self.filter == FILTER_EPANECHNIKOV {
                 2.0 * (1.0 - d2 / self.r2)
             } else {

@@ -583,6 +583,61 @@ impl<'t> PhotonMap<'t> {
         Ok(())
     }
 
+    /// What the global map's gathers at every `stride`-th of the first `count` paths of `fb`
+    /// visit and find, from the index as it stands (after `record_index` ran) and the paths as
+    /// the eye pass left them: computed natively by the shared index over read-back buffers
+    /// (`photon::in_disc`: the photons a gather counts). Grid or kd index alike.
+    pub fn query_stats(&self, pass: u32, fb: &FrameBuffers, count: u32, stride: u32) -> Result<QueryStats> {
+        use kdray_shared::photon::{in_disc, CellVisitor, HashGrid, KdCells, PhotonIndex, SortedPhotons};
+        struct Count {
+            x: [f32; 3],
+            n: [f32; 3],
+            r2: f32,
+            visited: u64,
+            found: u64,
+        }
+        impl CellVisitor for Count {
+            fn photon(&mut self, j: u32, sorted: &SortedPhotons) {
+                self.visited += 1;
+                self.found += in_disc(sorted.words[j as usize].word, self.x, self.n, self.r2).0 as u64;
+            }
+            fn photons2(&mut self, j: u32, sorted: &SortedPhotons) {
+                self.photon(j, sorted);
+                self.photon(j + 1, sorted);
+            }
+        }
+        let rt = self.t.rt;
+        let p = self.index_params(pass, count);
+        let (words, offsets) = (rt.read(&self.sorted, self.sorted.len())?, rt.read(&self.sort.offsets, self.sort.offsets.len())?);
+        let sorted = SortedPhotons { words: &words, powers: &[], offsets: &offsets };
+        let (rays, paths) = (rt.read(&fb.rays, count as usize)?, rt.read(&fb.paths, count as usize)?);
+        let r = p.radius[0];
+        let mut s = QueryStats::default();
+        let mut run = |index: &dyn Fn(&mut Count)| {
+            for k in (0..count as usize).step_by(stride.max(1) as usize) {
+                if paths[k].flags & kdray_shared::PATH_GATHER != 0 {
+                    let mut c = Count { x: rays[k].origin, n: rays[k].dir, r2: r * r, visited: 0, found: 0 };
+                    index(&mut c);
+                    s.points += 1;
+                    s.visited += c.visited;
+                    s.found += c.found;
+                }
+            }
+        };
+        match &self.kd {
+            None => {
+                let grid = HashGrid::new(&p);
+                run(&|c| grid.visit(c.x, r, 0, &sorted, c));
+            }
+            Some((_, leaves, nodes)) => {
+                let (nodes, leaves) = (rt.read(nodes, nodes.len())?, rt.read(leaves, leaves.len())?);
+                let kd = KdCells { nodes: &nodes, leaves: &leaves, cells: p.cells };
+                run(&|c| kd.visit(c.x, r, 0, &sorted, c));
+            }
+        }
+        Ok(s)
+    }
+
     /// Cells per map and slots (capacity) of the index.
     pub fn index_size(&self) -> (u32, u32) {
         (self.cells, self.capacity)
@@ -720,6 +775,28 @@ impl<'t> PhotonMap<'t> {
         let n = self.sort.placed()? as usize;
         let (words, powers) = (self.t.rt.read(&self.sorted, n)?, self.t.rt.read(&self.sorted_powers, n)?);
         Ok((words.iter().zip(powers).map(|(w, p)| w.photon(p)).collect(), offsets))
+    }
+}
+
+/// What sampled gathers visited and found (`PhotonMap::query_stats`).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct QueryStats {
+    /// Gather points sampled.
+    pub points: u64,
+    /// Photons their gathers tested (read from the index's cells).
+    pub visited: u64,
+    /// Photons that counted (within the radius, on the point's side).
+    pub found: u64,
+}
+
+impl QueryStats {
+    /// Photons found per gather point.
+    pub fn found_per_point(&self) -> f64 {
+        self.found as f64 / self.points.max(1) as f64
+    }
+    /// Photons tested per gather point.
+    pub fn visited_per_point(&self) -> f64 {
+        self.visited as f64 / self.points.max(1) as f64
     }
 }
 

@@ -198,9 +198,11 @@ pub enum Command {
         #[arg(long, value_enum, default_value = "monolithic")]
         pipeline: PipelineArg,
         /// Pixel order of the rays: `scanline`, or `tiles` (8×8 tiles, Morton order inside:
-        /// neighbouring rays run together).
-        #[arg(long, value_enum, default_value = "scanline")]
-        ray_order: RayOrderArg,
+        /// neighbouring rays run together). Same image either way. Default: tiles for the
+        /// photon integrator (its gathers read fewer cells per subgroup: 256 passes 7 % faster
+        /// on an H200), scanline otherwise.
+        #[arg(long, value_enum)]
+        ray_order: Option<RayOrderArg>,
         /// Leaf-list entries per ray of the decomposed pipeline.
         #[arg(long, default_value_t = kdray::accel::DEFAULT_LEAF_CAPACITY)]
         leaf_capacity: u32,
@@ -544,6 +546,7 @@ pub fn run(cli: Cli) -> Result<()> {
             let tree = tree.as_ref();
             let bvh = if accel.needs_bvh() { Some(build_bvh(&scene)?) } else { None };
             let mut cam = scene.camera.to_pod(size, size);
+            let ray_order = ray_order.unwrap_or(if integrator == IntegratorArg::Photon { RayOrderArg::Tiles } else { RayOrderArg::Scanline });
             if ray_order == RayOrderArg::Tiles {
                 cam.order = kdray_shared::ORDER_TILES;
             }
