@@ -766,14 +766,14 @@ impl Kernel for ExclusiveOffsets<'_> {
 pub struct SegmentOffsets<'a> {
     /// Keys (`cells`, a multiple of `segment`) and keys per segment (`segment`).
     pub params: SortParams,
-    /// Items per key (`CountRank`).
+    /// Items per key (`CountRank`); zeroed as read.
     pub counts: &'a Buffer<u32>,
-    /// Items per segment (`CountRank`).
+    /// Items per segment (`CountRank`); marked as the offsets are written.
     pub segments: &'a Buffer<u32>,
     /// Added to atomically (cleared before): the items of the segments placed so far.
     pub total: &'a Buffer<u32>,
-    /// Written: `segment + 1` offsets per segment that holds items (`sort::segment_slot`;
-    /// cleared before).
+    /// Written: `segment + 1` offsets per segment that holds items (`sort::segment_slot`), and
+    /// zeroed for one that held items in an earlier sort but none now.
     pub offsets: &'a Buffer<u32>,
 }
 
@@ -785,15 +785,16 @@ impl Kernel for SegmentOffsets<'_> {
         bytemuck::bytes_of(&self.params)
     }
     fn bindings(&self) -> Vec<Bind<'_>> {
-        vec![read("counts", self.counts), read("segments", self.segments), write("total", self.total), write("offsets", self.offsets)]
+        vec![write("counts", self.counts), write("segments", self.segments), write("total", self.total), write("offsets", self.offsets)]
     }
     fn threads(&self) -> u32 {
         self.params.cells / self.params.segment.max(1)
     }
     fn run(&self, t: u32) {
         // SAFETY: called by the native runtime during the dispatch of this pass, which holds
-        // its bindings; item t writes its segment's offsets only and adds to `total` atomically.
-        unsafe { sort::segment_offsets(t, &self.params, self.counts.host(), self.segments.host(), &mut self.total.host_store(), &mut self.offsets.host_store()) }
+        // its bindings; item t writes its segment's counts, mark and offsets only and adds to
+        // `total` atomically.
+        unsafe { sort::segment_offsets(t, &self.params, &mut self.counts.host_store(), &mut self.segments.host_store(), &mut self.total.host_store(), &mut self.offsets.host_store()) }
     }
 }
 

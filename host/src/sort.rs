@@ -4,7 +4,8 @@
 //! those in one item, turn the prefixes into each level's below them down to the cells'
 //! offsets: 2 L + 1 dispatches for L = max(1, ⌈log32 cells⌉ − 1) levels), or by segments of
 //! consecutive keys in one dispatch (`sort::segment_offsets`: each segment's range by an atomic
-//! addition, no scan). The photon index sorts photons by cell with it (counting in its own key
+//! addition, no scan; it zeroes the counts it read, so a sort by segments clears only its
+//! total before counting). The photon index sorts photons by cell with it (counting in its own key
 //! pass and placing the photons themselves); the passes are recorded into the caller's
 //! commands, so a schedule runs them with its other passes.
 use crate::error::{bail, Result};
@@ -27,7 +28,8 @@ enum Offsets {
 pub struct CountingSort<'r> {
     rt: &'r dyn Runtime,
     cells: u32,
-    /// Items per cell; the count pass adds to them (cleared by `record_clear`).
+    /// Items per cell; the count pass adds to them (cleared by `record_clear`, or by segments
+    /// by the offsets pass).
     pub counts: Buffer<u32>,
     /// Items per segment, added to like `counts` (one unused word for exact offsets).
     pub segments: Buffer<u32>,
@@ -96,9 +98,19 @@ impl<'r> CountingSort<'r> {
         }
     }
 
-    /// Records clearing the counts (and by segments, the segments' counts, their total and
-    /// the offsets, which segments without items leave as they are): before counting.
+    /// Records what must be cleared before counting: the counts, or by segments only the
+    /// total (`sort::segment_offsets` leaves the counts zeroed and the offsets of segments
+    /// without items empty).
     pub fn record_clear(&self, c: &mut Commands) -> Result<()> {
+        match &self.how {
+            Offsets::Scan(_) => self.rt.clear(c, self.counts.raw()),
+            Offsets::Segments(_, total) => self.rt.clear(c, total.raw()),
+        }
+    }
+
+    /// Records clearing every working buffer: after counting without the offsets (which by
+    /// segments would leave the counts for the next sort to add to).
+    pub fn record_reset(&self, c: &mut Commands) -> Result<()> {
         self.rt.clear(c, self.counts.raw())?;
         if let Offsets::Segments(_, total) = &self.how {
             for b in [&self.segments, total, &self.offsets] {
@@ -163,16 +175,20 @@ impl<'r> CountingSort<'r> {
 /// Sorts `keys` (< `cells`; others are left out) on `rt`, exact offsets or by segments of
 /// `seg` keys (`Some(seg)`): the offsets buffer as the sort leaves it (`CountingSort::offsets`)
 /// and the items in key order, `order[offsets[s]..offsets[s + 1]]` those of cell c for its slot
-/// s (c, or `sort::segment_slot(c, seg)`).
+/// s (c, or `sort::segment_slot(c, seg)`). The same buffers sort other keys first (each key k
+/// as `cells − 1 − k`): a sort must leave them ready for the next (by segments it cleans up
+/// behind itself).
 pub fn counting_sort(rt: &dyn Runtime, keys: &[u32], cells: u32, seg: Option<u32>) -> Result<(Vec<u32>, Vec<u32>)> {
     let n = keys.len() as u32;
     let s = match seg {
         None => CountingSort::new(rt, cells, n)?,
         Some(seg) => CountingSort::segmented(rt, cells, seg, n)?,
     };
-    let kbuf = rt.upload("keys", keys)?;
+    let mirrored: Vec<u32> = keys.iter().map(|&k| if k < cells { cells - 1 - k } else { k }).collect();
+    let (before, kbuf) = (rt.upload("keys sorted before", &mirrored)?, rt.upload("keys", keys)?);
     let order = rt.alloc::<u32>("order", keys.len())?;
     let mut c = rt.begin();
+    s.record(&mut c, &before, n, &order)?;
     s.record(&mut c, &kbuf, n, &order)?;
     let po = rt.read_back_of(&mut c, &s.offsets, s.offsets.len())?;
     let pr = rt.read_back_of(&mut c, &order, keys.len())?;

@@ -336,9 +336,7 @@ impl<'r> Tracer<'r> {
             let (rbuf, obuf) = &bufs[i % sets];
             rt.write(rbuf, batch)?;
             let mut c = rt.begin();
-            for k in self.query_passes::<Q>(accel, batch.len(), rbuf, obuf, lists.as_ref())? {
-                rt.dispatch(&mut c, k.as_ref())?;
-            }
+            rt.dispatch_all(&mut c, self.query_passes::<Q>(accel, batch.len(), rbuf, obuf, lists.as_ref())?)?;
             let p = rt.read_back_of(&mut c, obuf, batch.len())?;
             rt.submit(c)?;
             if let Some(prev) = pending.replace(p) {

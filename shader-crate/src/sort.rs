@@ -69,8 +69,8 @@ pub fn segment_offsets(
     #[spirv(global_invocation_id)] id: UVec3,
     #[spirv(num_workgroups)] groups: UVec3,
     #[spirv(push_constant)] params: &SortParams,
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] counts: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] segments: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] counts: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] segments: &mut [u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] total: &mut [u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] offsets: &mut [u32],
 ) {

@@ -435,10 +435,20 @@ pub fn trace_photons<M: Method, O: Store<Photon> + ?Sized, C: AtomicStore + ?Siz
 /// cells, with the photons in cell order. (The photons are passed along rather than held: a
 /// mutable visitor holding storage buffer slices crashed NVIDIA's SPIR-V compiler, driver 580.)
 pub trait CellVisitor {
+    /// Visits photon `j` of `sorted`, whose word (`PhotonWord`) is `w`.
+    fn word(&mut self, w: UVec4, j: u32, sorted: &SortedPhotons);
     /// Visits photon `j` of `sorted`.
-    fn photon(&mut self, j: u32, sorted: &SortedPhotons);
+    #[inline(always)]
+    fn photon(&mut self, j: u32, sorted: &SortedPhotons) {
+        self.word(sorted.words[j as usize].word, j, sorted);
+    }
     /// Visits photons `j` and `j + 1` (loading both before testing either).
-    fn photons2(&mut self, j: u32, sorted: &SortedPhotons);
+    #[inline(always)]
+    fn photons2(&mut self, j: u32, sorted: &SortedPhotons) {
+        let (w0, w1) = (sorted.words[j as usize].word, sorted.words[j as usize + 1].word);
+        self.word(w0, j, sorted);
+        self.word(w1, j + 1, sorted);
+    }
     /// Visits the photons from `sorted.offsets[first]` to `sorted.offsets[end]`: those of a
     /// run of cells whose offsets are at `first..end` (`offset_slot`).
     #[inline(always)]
@@ -470,8 +480,9 @@ pub trait PhotonIndex {
 /// modulo w, so the cells of one query never share a bucket: each is visited once, with no
 /// bookkeeping. Smaller cells (w = 3) visit about half the area (9r² against 16r²) in more,
 /// smaller cells; smaller still (windows of 4 and 5) tested fewer photons but ran 10–25 %
-/// slower (H200, `docs/gpu-runs/2026-12-03-gather-order-h200.md`). A block's cells are sorted together, as one segment (`sort::segment_offsets`:
-/// its offsets at `offset_slot`), so that each row of a window within a block is one run.
+/// slower (H200, `docs/gpu-runs/2026-12-03-gather-order-h200.md`). A block's cells are
+/// sorted together, as one segment (`sort::segment_offsets`: its offsets at `offset_slot`), so
+/// that each row of a window within a block is one run.
 pub struct HashGrid {
     /// The scene box's minimum corner; cells are counted from one cell below it.
     pub origin: [f32; 3],
@@ -806,16 +817,10 @@ impl Sum {
 }
 
 impl CellVisitor for Sum {
+    /// One 16-byte word decides most photons: those outside the disc.
     #[inline(always)]
-    fn photon(&mut self, j: u32, sorted: &SortedPhotons) {
-        // One 16-byte load decides most photons: those outside the disc.
-        self.add(sorted.words[j as usize].word, j, sorted);
-    }
-    #[inline(always)]
-    fn photons2(&mut self, j: u32, sorted: &SortedPhotons) {
-        let (w0, w1) = (sorted.words[j as usize].word, sorted.words[j as usize + 1].word);
-        self.add(w0, j, sorted);
-        self.add(w1, j + 1, sorted);
+    fn word(&mut self, w: UVec4, j: u32, sorted: &SortedPhotons) {
+        self.add(w, j, sorted);
     }
 }
 
@@ -842,9 +847,10 @@ pub fn irradiance<I: PhotonIndex>(index: &I, p: &IndexParams, sorted: &SortedPho
 /// gather point, adds the reflected radiance the photons of maps `p.first_map..p.maps` give
 /// (throughput already holds albedo/π) to its radiance (the film then adds the paths up).
 /// Under `GATHER_EDGES` a point near an edge (marked `PATH_NEAR_EDGE` by `mark_edges`) takes
-/// the caustic map only, stays a gather point (for the final gather) and is listed in `next_points` (its count in `next_points[0]`,
-/// cleared before; a list without room for every path, one element, lists none); every other
-/// point stops being one. A list: element 0 the count, then the paths' indices.
+/// the caustic map only, stays a gather point (for the final gather) and is listed in
+/// `next_points` (its count in `next_points[0]`, cleared before; a list without room for every
+/// path, one element, lists none); every other point stops being one. A list: element 0 the
+/// count, then the paths' indices.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 pub fn gather<I: PhotonIndex, P: Store<PathState> + ?Sized, L: Store<u32> + AtomicStore + ?Sized>(

@@ -154,32 +154,55 @@ pub fn offset_slot(key: u32, p: &SortParams) -> u32 {
     }
 }
 
+/// `segments[s]`'s high bit after `segment_offsets`: the segment's offsets hold a sort's values
+/// (the counts that later sorts add go to the low bits).
+pub const SEGMENT_WRITTEN: u32 = 1 << 31;
+
 /// Segment `s` of `p.cells / seg` (`p.cells` keys in segments of `seg = p.segment`, holding
 /// `segments[s]` items): its `seg + 1` offsets (`segment_slot`), from a range of slots taken by
-/// one atomic addition to `total[0]`. A segment without items takes none and writes nothing
-/// (its offsets stay as cleared: 0).
+/// one atomic addition to `total[0]`. The sort cleans up behind itself, so that only `total`
+/// needs clearing before the next (the other buffers are as large as the keys: clearing them
+/// took about a quarter of the photon index's time): the segment's counts are read and zeroed,
+/// and it is marked `SEGMENT_WRITTEN`; a segment without items whose offsets were written by
+/// an earlier sort zeroes them (empty ranges) and its mark, and one never written writes
+/// nothing. Counts and segments start zeroed (as allocated).
 #[inline(always)]
-pub fn segment_offsets<T: AtomicStore + ?Sized, O: Store<u32> + ?Sized>(
+pub fn segment_offsets<C: Store<u32> + ?Sized, S: Store<u32> + ?Sized, T: AtomicStore + ?Sized, O: Store<u32> + ?Sized>(
     s: u32,
     p: &SortParams,
-    counts: &[u32],
-    segments: &[u32],
+    counts: &mut C,
+    segments: &mut S,
     total: &mut T,
     offsets: &mut O,
 ) {
     let seg = p.segment;
-    if seg == 0 || s >= p.cells / seg || segments[s as usize] == 0 {
+    if seg == 0 || s >= p.cells / seg {
         return;
     }
-    let mut v = total.atomic_add(0, segments[s as usize]);
+    let tagged = segments.load(s as usize);
+    let n = tagged & !SEGMENT_WRITTEN;
     let (first, out) = (s * seg, s * (seg + 1));
+    if n == 0 {
+        if tagged != 0 {
+            let mut k = 0;
+            while k <= seg {
+                offsets.store((out + k) as usize, 0);
+                k += 1;
+            }
+            segments.store(s as usize, 0);
+        }
+        return;
+    }
+    let mut v = total.atomic_add(0, n);
     let mut k = 0;
     while k < seg {
         offsets.store((out + k) as usize, v);
-        v = v.wrapping_add(counts[(first + k) as usize]);
+        v = v.wrapping_add(counts.load((first + k) as usize));
+        counts.store((first + k) as usize, 0);
         k += 1;
     }
     offsets.store((out + seg) as usize, v);
+    segments.store(s as usize, SEGMENT_WRITTEN);
 }
 
 /// Item `i` to its slot: `order[offsets[offset_slot(key)] + ranks[i]] = i` (keys ≥ `p.cells`

@@ -278,10 +278,7 @@ pub fn render_checkpointed(t: &Tracer, accel: Accel, cam: &Camera, o: &PathOptio
             let mut recorded = 0;
             for (&(first, count), film) in batches.iter().zip(&films) {
                 let p = RenderParams { sample_base: g * per_dispatch, ..with_samples(params(t, cam, o, first, count, g), s) };
-                for k in eye_passes_into(t, accel, &p, &work, film, o.fused)? {
-                    rt.dispatch(&mut c, k.as_ref())?;
-                    recorded += 1;
-                }
+                recorded += rt.dispatch_all(&mut c, eye_passes_into(t, accel, &p, &work, film, o.fused)?)?;
                 rt.dispatch(&mut c, &Film { params: p, paths: &work.paths, radiance: &film.radiance })?;
                 if recorded >= DISPATCHES_PER_SUBMIT {
                     rt.submit(std::mem::replace(&mut c, rt.begin()))?;

@@ -466,6 +466,14 @@ impl dyn Runtime + '_ {
         self.write_raw(buf.raw(), bytemuck::cast_slice(data))
     }
 
+    /// Records the passes `ks` in order; returns how many.
+    pub fn dispatch_all<'k>(&self, c: &mut Commands, ks: Vec<Box<dyn Kernel + 'k>>) -> Result<usize> {
+        for k in &ks {
+            self.dispatch(c, k.as_ref())?;
+        }
+        Ok(ks.len())
+    }
+
     /// Records reading the first `n` elements of `buf` back.
     pub fn read_back_of<T: Pod>(&self, c: &mut Commands, buf: &Buffer<T>, n: usize) -> Result<Pending> {
         self.read_back(c, buf.raw(), (n.min(buf.len()) * std::mem::size_of::<T>()) as u64)

@@ -546,8 +546,8 @@ pub fn run(cli: Cli) -> Result<()> {
             let tree = tree.as_ref();
             let bvh = if accel.needs_bvh() { Some(build_bvh(&scene)?) } else { None };
             let mut cam = scene.camera.to_pod(size, size);
-            let ray_order = ray_order.unwrap_or(if integrator == IntegratorArg::Photon { RayOrderArg::Tiles } else { RayOrderArg::Scanline });
-            if ray_order == RayOrderArg::Tiles {
+            // The photon integrator traces tiles unless told otherwise (`PhotonOptions::tiles`).
+            if ray_order == Some(RayOrderArg::Tiles) {
                 cam.order = kdray_shared::ORDER_TILES;
             }
             let gpu = match device {
@@ -629,6 +629,7 @@ pub fn run(cli: Cli) -> Result<()> {
                             caustic_radius: 0.5,
                             eye_bounces: bounces,
                             eye_samples: spp,
+                            tiles: ray_order != Some(RayOrderArg::Scanline),
                             seed,
                             sampler: sampler.kind(),
                             photon_sampler: photon_sampler.kind(),
