@@ -16,7 +16,8 @@
 //! * by segments, in one dispatch: keys come in segments of `seg` consecutive keys (a photon
 //!   grid's block of cells); `segment_offsets` gives each segment that holds items a range of
 //!   slots by one atomic addition to a total and writes its keys' offsets within it, in key
-//!   order (segments without items write nothing: the offsets are cleared before). Segments
+//!   order (it zeroes the counts it read, and the offsets of a segment emptied since an earlier
+//!   sort: only the total is cleared before the next; never-written segments stay 0). Segments
 //!   lie in whatever order their additions happened, so a key's offset is at
 //!   `segment_slot(key, seg)` (`seg + 1` entries per segment, the last its end) and only keys
 //!   of one segment are contiguous — all a query of runs inside segments needs, without a

@@ -144,9 +144,10 @@ pub struct PhotonOptions {
     pub eye_bounces: u32,
     /// Eye samples per pixel and pass (all gather from the pass's photons).
     pub eye_samples: u32,
-    /// Trace the pixels in 8×8 tiles (`ORDER_TILES`), whatever the camera's order: a
+    /// `render` traces the pixels in 8×8 tiles (`ORDER_TILES`), whatever the camera's order: a
     /// subgroup's gathers then read nearly the same cells (the same image; H200, 512², 256
-    /// passes: 7 % faster). Otherwise in the camera's order.
+    /// passes: 7 % faster). Otherwise in the camera's order. (`eye_params` takes the camera as
+    /// given.)
     pub tiles: bool,
     /// The render's seed: each pass's photons and eye samples derive from it and the pass index.
     pub seed: u32,
