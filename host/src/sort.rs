@@ -175,21 +175,32 @@ impl<'r> CountingSort<'r> {
 /// Sorts `keys` (< `cells`; others are left out) on `rt`, exact offsets or by segments of
 /// `seg` keys (`Some(seg)`): the offsets buffer as the sort leaves it (`CountingSort::offsets`)
 /// and the items in key order, `order[offsets[s]..offsets[s + 1]]` those of cell c for its slot
-/// s (c, or `sort::segment_slot(c, seg)`). The same buffers sort other keys first (each key k
-/// as `cells − 1 − k`): a sort must leave them ready for the next (by segments it cleans up
-/// behind itself).
+/// s (c, or `sort::segment_slot(c, seg)`).
 pub fn counting_sort(rt: &dyn Runtime, keys: &[u32], cells: u32, seg: Option<u32>) -> Result<(Vec<u32>, Vec<u32>)> {
+    counting_sorts(rt, &[keys], cells, seg)
+}
+
+/// `counting_sort` of each of `key_sets` in turn (all of one length) with the same buffers,
+/// the last one's result: a sort must leave its buffers ready for the next (by segments it
+/// cleans up behind itself).
+pub fn counting_sorts(rt: &dyn Runtime, key_sets: &[&[u32]], cells: u32, seg: Option<u32>) -> Result<(Vec<u32>, Vec<u32>)> {
+    let Some(keys) = key_sets.last() else {
+        bail!(InvalidInput: "counting_sorts: no keys to sort");
+    };
+    if key_sets.iter().any(|k| k.len() != keys.len()) {
+        bail!(InvalidInput: "counting_sorts: key sets of different lengths");
+    }
     let n = keys.len() as u32;
     let s = match seg {
         None => CountingSort::new(rt, cells, n)?,
         Some(seg) => CountingSort::segmented(rt, cells, seg, n)?,
     };
-    let mirrored: Vec<u32> = keys.iter().map(|&k| if k < cells { cells - 1 - k } else { k }).collect();
-    let (before, kbuf) = (rt.upload("keys sorted before", &mirrored)?, rt.upload("keys", keys)?);
     let order = rt.alloc::<u32>("order", keys.len())?;
     let mut c = rt.begin();
-    s.record(&mut c, &before, n, &order)?;
-    s.record(&mut c, &kbuf, n, &order)?;
+    let kbufs = key_sets.iter().map(|k| rt.upload("keys", k)).collect::<Result<Vec<_>>>()?;
+    for kbuf in &kbufs {
+        s.record(&mut c, kbuf, n, &order)?;
+    }
     let po = rt.read_back_of(&mut c, &s.offsets, s.offsets.len())?;
     let pr = rt.read_back_of(&mut c, &order, keys.len())?;
     rt.submit(c)?;
