@@ -652,8 +652,9 @@ fn rays_from_far_away() {
     assert!(hits.iter().filter(|h| h.is_hit()).count() * 20 > far.len(), "some of the rays hit");
     // On the GPU against the GPU's own brute force: rays from that far cross edges and
     // vertices often (their directions round to a coarse grid), where the GPU's triangle test
-    // may round otherwise than the native one.
-    check_gpu_against_gpu_brute("rays from far away", &s, &tree, &far);
+    // may round otherwise than the native one. The first 10 000 (every direction, about 150
+    // rays each): on lavapipe all 40 000 took three minutes of the CI's 2 cores.
+    check_gpu_against_gpu_brute("rays from far away", &s, &tree, &far[..10_000]);
 }
 
 /// Every GPU traversal against the GPU's brute force on `rays` (ties allowed): for rays whose

@@ -766,12 +766,11 @@ impl Kernel for ExclusiveOffsets<'_> {
 pub struct SegmentOffsets<'a> {
     /// Keys (`cells`, a multiple of `segment`) and keys per segment (`segment`).
     pub params: SortParams,
-    /// Items per key (`CountRank`); zeroed as read.
+    /// Items per key (`CountRank`).
     pub counts: &'a Buffer<u32>,
-    /// Items per segment (`CountRank`); marked as the offsets are written.
+    /// Items per segment (`CountRank`), marked as the offsets are written; then the total
+    /// (`sort::total_slot`), added to atomically: the items of the segments placed so far.
     pub segments: &'a Buffer<u32>,
-    /// Added to atomically (cleared before): the items of the segments placed so far.
-    pub total: &'a Buffer<u32>,
     /// Written: `segment + 1` offsets per segment that holds items (`sort::segment_slot`), and
     /// zeroed for one that held items in an earlier sort but none now.
     pub offsets: &'a Buffer<u32>,
@@ -785,16 +784,16 @@ impl Kernel for SegmentOffsets<'_> {
         bytemuck::bytes_of(&self.params)
     }
     fn bindings(&self) -> Vec<Bind<'_>> {
-        vec![write("counts", self.counts), write("segments", self.segments), write("total", self.total), write("offsets", self.offsets)]
+        vec![read("counts", self.counts), write("segments", self.segments), write("offsets", self.offsets)]
     }
     fn threads(&self) -> u32 {
         self.params.cells / self.params.segment.max(1)
     }
     fn run(&self, t: u32) {
         // SAFETY: called by the native runtime during the dispatch of this pass, which holds
-        // its bindings; item t writes its segment's counts, mark and offsets only and adds to
-        // `total` atomically.
-        unsafe { sort::segment_offsets(t, &self.params, &mut self.counts.host_store(), &mut self.segments.host_store(), &mut self.total.host_store(), &mut self.offsets.host_store()) }
+        // its bindings; item t writes its segment's mark and offsets only and adds to the
+        // total atomically.
+        unsafe { sort::segment_offsets(t, &self.params, self.counts.host(), &mut self.segments.host_store(), &mut self.offsets.host_store()) }
     }
 }
 
@@ -809,6 +808,8 @@ pub struct ScatterKeys<'a> {
     pub ranks: &'a Buffer<u32>,
     /// The keys' offsets (`ExclusiveOffsets` or `SegmentOffsets`).
     pub offsets: &'a Buffer<u32>,
+    /// Items per key (`CountRank`): zeroed for the next sort, each by its key's first item.
+    pub counts: &'a Buffer<u32>,
     /// Written: the item indices in key order.
     pub order: &'a Buffer<u32>,
 }
@@ -821,15 +822,16 @@ impl Kernel for ScatterKeys<'_> {
         bytemuck::bytes_of(&self.params)
     }
     fn bindings(&self) -> Vec<Bind<'_>> {
-        vec![read("keys", self.keys), read("ranks", self.ranks), read("offsets", self.offsets), write("order", self.order)]
+        vec![read("keys", self.keys), read("ranks", self.ranks), read("offsets", self.offsets), write("counts", self.counts), write("order", self.order)]
     }
     fn threads(&self) -> u32 {
         self.params.count
     }
     fn run(&self, t: u32) {
         // SAFETY: called by the native runtime during the dispatch of this pass, which holds
-        // its bindings; ranks make every item's slot its own.
-        unsafe { sort::scatter(t, &self.params, self.keys.host(), self.ranks.host(), self.offsets.host(), &mut self.order.host_store()) }
+        // its bindings; ranks make every item's slot its own, and only a key's item of rank
+        // 0 writes its count.
+        unsafe { sort::scatter(t, &self.params, self.keys.host(), self.ranks.host(), self.offsets.host(), &mut self.counts.host_store(), &mut self.order.host_store()) }
     }
 }
 
@@ -966,9 +968,10 @@ pub struct PhotonKeys<'a> {
     pub counter: &'a Buffer<u32>,
     /// Written: each slot's cell (`NO_CELL` for empty slots).
     pub keys: &'a Buffer<u32>,
-    /// Added to atomically: photons per cell (cleared before).
+    /// Added to atomically: photons per cell (zeroed by the last index's placing).
     pub counts: &'a Buffer<u32>,
-    /// Added to atomically for the hashed grid: photons per block of cells (cleared before).
+    /// Added to atomically for the hashed grid: photons per block of cells (marked by the last
+    /// index's offsets), then the total, which item 0 zeroes (`sort::start`).
     pub segments: &'a Buffer<u32>,
     /// Written: each placed photon's rank among its cell's.
     pub ranks: &'a Buffer<u32>,
@@ -1022,6 +1025,8 @@ pub struct PlacePhotons<'a> {
     pub ranks: &'a Buffer<u32>,
     /// The cells' offsets (`photon::offset_slot`).
     pub offsets: &'a Buffer<u32>,
+    /// The sort's counts per cell: zeroed for the next index, each by its cell's first photon.
+    pub counts: &'a Buffer<u32>,
     /// Written: the placed records' positions and packed words in cell order.
     pub words: &'a Buffer<PhotonWord>,
     /// Written: their powers, in the same order.
@@ -1041,6 +1046,7 @@ impl Kernel for PlacePhotons<'_> {
             read("keys", self.keys),
             read("ranks", self.ranks),
             read("offsets", self.offsets),
+            write("counts", self.counts),
             write("words", self.words),
             write("powers", self.powers),
         ]
@@ -1050,10 +1056,11 @@ impl Kernel for PlacePhotons<'_> {
     }
     fn run(&self, t: u32) {
         // SAFETY: called by the native runtime during the dispatch of this pass, which holds
-        // its bindings; ranks make every placed photon's slot its own.
+        // its bindings; ranks make every placed photon's slot its own, and only a cell's
+        // photon of rank 0 writes its count.
         unsafe {
-            let (mut words, mut powers) = (self.words.host_store(), self.powers.host_store());
-            photon::place(t, &self.params, self.photons.host(), self.keys.host(), self.ranks.host(), self.offsets.host(), &mut words, &mut powers)
+            let (mut counts, mut words, mut powers) = (self.counts.host_store(), self.words.host_store(), self.powers.host_store());
+            photon::place(t, &self.params, self.photons.host(), self.keys.host(), self.ranks.host(), self.offsets.host(), &mut counts, &mut words, &mut powers)
         }
     }
 }

@@ -4,8 +4,9 @@
 //! those in one item, turn the prefixes into each level's below them down to the cells'
 //! offsets: 2 L + 1 dispatches for L = max(1, ⌈log32 cells⌉ − 1) levels), or by segments of
 //! consecutive keys in one dispatch (`sort::segment_offsets`: each segment's range by an atomic
-//! addition, no scan; it zeroes the counts it read, so a sort by segments clears only its
-//! total before counting). The photon index sorts photons by cell with it (counting in its own key
+//! addition, no scan). A sort needs no clearing: it leaves its buffers ready for the next (the
+//! scatter zeroes the counts, each key's first item, `sort::release`; the count pass zeroes
+//! the total, `sort::start`). The photon index sorts photons by cell with it (counting in its own key
 //! pass and placing the photons themselves); the passes are recorded into the caller's
 //! commands, so a schedule runs them with its other passes.
 use crate::error::{bail, Result};
@@ -20,18 +21,18 @@ enum Offsets {
     /// prefix sums, one per element (level 1: the sums of chunks of counts; the last has at
     /// most `CHUNK` elements).
     Scan(Vec<(Buffer<u32>, Buffer<u32>)>),
-    /// By segments of this many keys, with the total placed so far.
-    Segments(u32, Buffer<u32>),
+    /// By segments of this many keys (the total placed so far after the segments' counts).
+    Segments(u32),
 }
 
 /// The sort's working buffers for a fixed number of cells and items.
 pub struct CountingSort<'r> {
     rt: &'r dyn Runtime,
     cells: u32,
-    /// Items per cell; the count pass adds to them (cleared by `record_clear`, or by segments
-    /// by the offsets pass).
+    /// Items per cell; the count pass adds to them (zeroed again by the scatter).
     pub counts: Buffer<u32>,
-    /// Items per segment, added to like `counts` (one unused word for exact offsets).
+    /// Items per segment, added to like `counts`, then the total placed so far
+    /// (`sort::total_slot`); one unused word for exact offsets.
     pub segments: Buffer<u32>,
     /// Each counted item's rank among its cell's (as many as the sort's items).
     pub ranks: Buffer<u32>,
@@ -83,9 +84,9 @@ impl<'r> CountingSort<'r> {
             rt,
             cells,
             counts: rt.alloc("cell counts", cells as usize)?,
-            segments: rt.alloc("segment counts", (cells / seg) as usize)?,
+            segments: rt.alloc("segment counts", (cells / seg) as usize + 1)?,
             ranks: rt.alloc("cell ranks", items as usize)?,
-            how: Offsets::Segments(seg, rt.alloc("sorted total", 1)?),
+            how: Offsets::Segments(seg),
             offsets: rt.alloc("cell offsets", entries as usize)?,
         })
     }
@@ -94,28 +95,15 @@ impl<'r> CountingSort<'r> {
     pub fn segment(&self) -> u32 {
         match self.how {
             Offsets::Scan(_) => 0,
-            Offsets::Segments(seg, _) => seg,
+            Offsets::Segments(seg) => seg,
         }
     }
 
-    /// Records what must be cleared before counting: the counts, or by segments only the
-    /// total (`sort::segment_offsets` leaves the counts zeroed and the offsets of segments
-    /// without items empty).
-    pub fn record_clear(&self, c: &mut Commands) -> Result<()> {
-        match &self.how {
-            Offsets::Scan(_) => self.rt.clear(c, self.counts.raw()),
-            Offsets::Segments(_, total) => self.rt.clear(c, total.raw()),
-        }
-    }
-
-    /// Records clearing every working buffer: after counting without the offsets (which by
-    /// segments would leave the counts for the next sort to add to).
+    /// Records clearing every working buffer: after counting without the scatter (which
+    /// would leave the counts for the next sort to add to).
     pub fn record_reset(&self, c: &mut Commands) -> Result<()> {
-        self.rt.clear(c, self.counts.raw())?;
-        if let Offsets::Segments(_, total) = &self.how {
-            for b in [&self.segments, total, &self.offsets] {
-                self.rt.clear(c, b.raw())?;
-            }
+        for b in [&self.counts, &self.segments, &self.offsets] {
+            self.rt.clear(c, b.raw())?;
         }
         Ok(())
     }
@@ -125,8 +113,8 @@ impl<'r> CountingSort<'r> {
         let rt = self.rt;
         let p = SortParams { count: 0, cells: self.cells, segment: 0, _pad: 0 };
         match &self.how {
-            Offsets::Segments(seg, total) => {
-                let k = SegmentOffsets { params: SortParams { segment: *seg, ..p }, counts: &self.counts, segments: &self.segments, total, offsets: &self.offsets };
+            Offsets::Segments(seg) => {
+                let k = SegmentOffsets { params: SortParams { segment: *seg, ..p }, counts: &self.counts, segments: &self.segments, offsets: &self.offsets };
                 rt.dispatch(c, &k)
             }
             Offsets::Scan(levels) => {
@@ -157,17 +145,19 @@ impl<'r> CountingSort<'r> {
             bail!(TooLarge: "a counting sort of {n} items with {} keys, room for {} and {} ranks", keys.len(), order.len(), self.ranks.len());
         }
         let p = SortParams { count: n, cells: self.cells, segment: self.segment(), _pad: 0 };
-        self.record_clear(c)?;
         self.rt.dispatch(c, &CountRank { params: p, keys, counts: &self.counts, segments: &self.segments, ranks: &self.ranks })?;
         self.record_offsets(c)?;
-        self.rt.dispatch(c, &ScatterKeys { params: p, keys, ranks: &self.ranks, offsets: &self.offsets, order })
+        self.rt.dispatch(c, &ScatterKeys { params: p, keys, ranks: &self.ranks, offsets: &self.offsets, counts: &self.counts, order })
     }
 
     /// Items placed by the last sort (after it ran).
     pub fn placed(&self) -> Result<u32> {
         match &self.how {
             Offsets::Scan(_) => Ok(self.rt.read(&self.offsets, self.cells as usize + 1)?[self.cells as usize]),
-            Offsets::Segments(_, total) => Ok(self.rt.read(total, 1)?[0]),
+            Offsets::Segments(seg) => {
+                let slot = kdray_shared::sort::total_slot(&SortParams { count: 0, cells: self.cells, segment: *seg, _pad: 0 });
+                Ok(self.rt.read(&self.segments, slot + 1)?[slot])
+            }
         }
     }
 }

@@ -87,10 +87,11 @@ pub fn place_photons(
     #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] keys: &[u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] ranks: &[u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] offsets: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] words: &mut [PhotonWord],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] powers: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] counts: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] words: &mut [PhotonWord],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] powers: &mut [u32],
 ) {
-    photon::place(crate::item(id, groups), params, photons, keys, ranks, offsets, words, powers);
+    photon::place(crate::item(id, groups), params, photons, keys, ranks, offsets, counts, words, powers);
 }
 
 #[spirv(compute(threads(64)))]

@@ -69,12 +69,11 @@ pub fn segment_offsets(
     #[spirv(global_invocation_id)] id: UVec3,
     #[spirv(num_workgroups)] groups: UVec3,
     #[spirv(push_constant)] params: &SortParams,
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] counts: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] counts: &[u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] segments: &mut [u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] total: &mut [u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] offsets: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] offsets: &mut [u32],
 ) {
-    sort::segment_offsets(crate::item(id, groups), params, counts, segments, &mut Atomics(total), offsets);
+    sort::segment_offsets(crate::item(id, groups), params, counts, &mut Atomics(segments), offsets);
 }
 
 #[spirv(compute(threads(64)))]
@@ -85,7 +84,8 @@ pub fn scatter_keys(
     #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] keys: &[u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] ranks: &[u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] offsets: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] order: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] counts: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] order: &mut [u32],
 ) {
-    sort::scatter(crate::item(id, groups), params, keys, ranks, offsets, order);
+    sort::scatter(crate::item(id, groups), params, keys, ranks, offsets, counts, order);
 }

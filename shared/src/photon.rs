@@ -107,18 +107,26 @@ pub fn encode_oct(n: [f32; 3], bits: u32) -> u32 {
     q(x) | (q(y) << bits)
 }
 
-/// The unit vector of an `encode_oct` word of 2 × `bits` bits.
+/// The direction of an `encode_oct` word of 2 × `bits` bits, not normalised (a point of the
+/// octahedron |x| + |y| + |z| = 1): enough for a test of the angle to another vector
+/// (`in_disc`), without the square root and division of `decode_oct`.
 #[inline(always)]
-pub fn decode_oct(v: u32, bits: u32) -> [f32; 3] {
+pub fn oct_vector(v: u32, bits: u32) -> [f32; 3] {
     let mask = (1u32 << bits) - 1;
-    let levels = mask as f32;
-    let x = (v & mask) as f32 / levels * 2.0 - 1.0;
-    let y = ((v >> bits) & mask) as f32 / levels * 2.0 - 1.0;
+    let k = 2.0 / mask as f32;
+    let x = (v & mask) as f32 * k - 1.0;
+    let y = ((v >> bits) & mask) as f32 * k - 1.0;
     let z = 1.0 - x.abs() - y.abs();
     let t = (-z).max(0.0);
     let x = x + if x >= 0.0 { -t } else { t };
     let y = y + if y >= 0.0 { -t } else { t };
-    normalize3([x, y, z])
+    [x, y, z]
+}
+
+/// The unit vector of an `encode_oct` word of 2 × `bits` bits.
+#[inline(always)]
+pub fn decode_oct(v: u32, bits: u32) -> [f32; 3] {
+    normalize3(oct_vector(v, bits))
 }
 
 impl Photon {
@@ -431,32 +439,38 @@ pub fn trace_photons<M: Method, O: Store<Photon> + ?Sized, C: AtomicStore + ?Siz
 // ---------------------------------------------------------------------------------------------
 // The index
 
-/// Receives the photons that a gather visits, one or two at a time or as runs of consecutive
-/// cells, with the photons in cell order. (The photons are passed along rather than held: a
-/// mutable visitor holding storage buffer slices crashed NVIDIA's SPIR-V compiler, driver 580.)
+/// Receives the photons that a gather visits, one at a time, with the photons in cell order.
+/// (The photons are passed along rather than held: a mutable visitor holding storage buffer
+/// slices crashed NVIDIA's SPIR-V compiler, driver 580.)
 pub trait CellVisitor {
     /// Visits photon `j` of `sorted`, whose word (`PhotonWord`) is `w`.
     fn word(&mut self, w: UVec4, j: u32, sorted: &SortedPhotons);
-    /// Visits photon `j` of `sorted`.
+}
+
+impl SortedPhotons<'_> {
+    /// The photons of a run of cells whose offsets are at `first..end` (`offset_slot`): from
+    /// `offsets[first]` to `offsets[end]`, the end clamped to the words held, so that every
+    /// photon of the range can be loaded without a bounds check (`word`).
     #[inline(always)]
-    fn photon(&mut self, j: u32, sorted: &SortedPhotons) {
-        self.word(sorted.words[j as usize].word, j, sorted);
+    pub fn run(&self, first: u32, end: u32) -> (u32, u32) {
+        (self.offsets[first as usize], self.offsets[end as usize].min(self.words.len() as u32))
     }
-    /// Visits photons `j` and `j + 1` (loading both before testing either).
+    /// Photon `j`'s word, for `j` below the end of a range of `run`.
+    ///
+    /// # Safety
+    /// `j < words.len()` (a range from `run` holds only such photons).
     #[inline(always)]
-    fn photons2(&mut self, j: u32, sorted: &SortedPhotons) {
-        let (w0, w1) = (sorted.words[j as usize].word, sorted.words[j as usize + 1].word);
-        self.word(w0, j, sorted);
-        self.word(w1, j + 1, sorted);
+    pub unsafe fn word(&self, j: u32) -> UVec4 {
+        // SAFETY: the caller's contract.
+        unsafe { crate::kernel::at(self.words, j as usize).word }
     }
-    /// Visits the photons from `sorted.offsets[first]` to `sorted.offsets[end]`: those of a
-    /// run of cells whose offsets are at `first..end` (`offset_slot`).
+    /// Visits (`CellVisitor`) the photons of a run of cells whose offsets are at `first..end`.
     #[inline(always)]
-    fn cells(&mut self, first: u32, end: u32, sorted: &SortedPhotons) {
-        let (a, b) = (sorted.offsets[first as usize], sorted.offsets[end as usize]);
-        let mut j = a;
+    pub fn visit_run<V: CellVisitor>(&self, first: u32, end: u32, v: &mut V) {
+        let (mut j, b) = self.run(first, end);
         while j < b {
-            self.photon(j, sorted);
+            // SAFETY: j < b, and `run` clamps b to the words held.
+            v.word(unsafe { self.word(j) }, j, self);
             j += 1;
         }
     }
@@ -570,18 +584,21 @@ impl PhotonIndex for HashGrid {
         loop {
             if j + 1 < b {
                 // Two photons a step: both loads are issued before either is tested.
-                v.photons2(j, sorted);
+                // SAFETY: j + 1 < b, and `run` clamps b to the words held.
+                let (w0, w1) = unsafe { (sorted.word(j), sorted.word(j + 1)) };
+                v.word(w0, j, sorted);
+                v.word(w1, j + 1, sorted);
                 j += 2;
             } else if j < b {
-                v.photon(j, sorted);
+                // SAFETY: as above.
+                v.word(unsafe { sorted.word(j) }, j, sorted);
                 j += 1;
             } else if z <= hi[2] {
                 let hy = pcg_hash(qy ^ pcg_hash(qz));
                 let place = w * (my + w * mz);
                 let (block, o, len) = if second { (pcg_hash((qx0 + 1) ^ hy), 0, n - first_run) } else { (pcg_hash(qx0 ^ hy), mx0, first_run) };
                 let s = ((block & (self.blocks - 1)) + first_block) * (w3 + 1) + place + o;
-                j = sorted.offsets[s as usize];
-                b = sorted.offsets[(s + len) as usize];
+                (j, b) = sorted.run(s, s + len);
                 // The next run: this row's second part, or the next row.
                 if !second && first_run < n {
                     second = true;
@@ -680,7 +697,7 @@ impl PhotonIndex for KdCells<'_> {
                 while y <= b[1] {
                     // A row of the leaf's cells along x is a run of consecutive cells.
                     let c = l.base + (z * d[1] + y) * d[0] + map * self.cells;
-                    v.cells(c + a[0], c + b[0] + 1, sorted);
+                    sorted.visit_run(c + a[0], c + b[0] + 1, v);
                     y += 1;
                 }
                 z += 1;
@@ -702,9 +719,10 @@ fn map_of(p: &IndexParams, ph: &Photon) -> u32 {
 }
 
 /// The cell of photon slot `i` (`NO_CELL` past the stored photons), and the photon's place
-/// among its cell's (`sort::count_rank`, fused: one pass reads the photons once).
+/// among its cell's (`sort::count_rank`, fused: one pass reads the photons once; its
+/// `sort::start` too).
 #[inline(always)]
-pub fn keys<I: PhotonIndex, K: Store<u32> + ?Sized, C: AtomicStore + ?Sized, S: AtomicStore + ?Sized, R: Store<u32> + ?Sized>(
+pub fn keys<I: PhotonIndex, K: Store<u32> + ?Sized, C: AtomicStore + ?Sized, S: AtomicStore + Store<u32> + ?Sized, R: Store<u32> + ?Sized>(
     i: u32,
     p: &IndexParams,
     index: &I,
@@ -715,6 +733,8 @@ pub fn keys<I: PhotonIndex, K: Store<u32> + ?Sized, C: AtomicStore + ?Sized, S: 
     segments: &mut S,
     ranks: &mut R,
 ) {
+    let sp = sort_params(p);
+    crate::sort::start(i, &sp, segments);
     if i < p.count {
         let stored = counter[0].min(p.count);
         let key = if i < stored {
@@ -724,7 +744,7 @@ pub fn keys<I: PhotonIndex, K: Store<u32> + ?Sized, C: AtomicStore + ?Sized, S: 
             NO_CELL
         };
         keys.store(i as usize, key);
-        ranks.store(i as usize, crate::sort::rank(key, &sort_params(p), counts, segments));
+        ranks.store(i as usize, crate::sort::rank(key, &sp, counts, segments));
     }
 }
 
@@ -751,25 +771,30 @@ pub fn cell_range(p: &IndexParams, offsets: &[u32], cell: u32) -> (u32, u32) {
 }
 
 /// Photon slot `i` into cell order: `words`, `powers` at its cell's offset plus its rank
-/// (slots without a cell are left out).
+/// (slots without a cell are left out); the sort's scatter, so the first photon of a cell
+/// zeroes its count (`sort::release`).
 #[inline(always)]
-pub fn place<W: Store<PhotonWord> + ?Sized, P: Store<u32> + ?Sized>(
+#[allow(clippy::too_many_arguments)]
+pub fn place<C: Store<u32> + ?Sized, W: Store<PhotonWord> + ?Sized, P: Store<u32> + ?Sized>(
     i: u32,
     p: &IndexParams,
     photons: &[Photon],
     keys: &[u32],
     ranks: &[u32],
     offsets: &[u32],
+    counts: &mut C,
     words: &mut W,
     powers: &mut P,
 ) {
     if i < p.count {
         let key = keys[i as usize];
         if key < p.cells * p.maps {
-            let slot = (offsets[offset_slot(p, key) as usize] + ranks[i as usize]) as usize;
+            let rank = ranks[i as usize];
+            let slot = (offsets[offset_slot(p, key) as usize] + rank) as usize;
             let ph = photons[i as usize];
             words.store(slot, PhotonWord::of(&ph));
             powers.store(slot, ph.power);
+            crate::sort::release(key, rank, counts);
         }
     }
 }
@@ -784,7 +809,12 @@ pub fn place<W: Store<PhotonWord> + ?Sized, P: Store<u32> + ?Sized>(
 pub fn in_disc(w: UVec4, x: [f32; 3], n: [f32; 3], r2: f32) -> (bool, f32) {
     let d = sub3([f32::from_bits(w.x), f32::from_bits(w.y), f32::from_bits(w.z)], x);
     let d2 = dot3(d, d);
-    (d2 <= r2 && dot3(decode_oct(w.w & 0xffff, 8), n) > 0.5, d2)
+    // cos > 0.5 for the photon's normal m, not normalised (`oct_vector`): c = m·n > 0 and
+    // 4c² > |m|² (no square root or division: this test runs for every photon visited). No
+    // branches: a subgroup's lanes pay for every side of one.
+    let m = oct_vector(w.w & 0xffff, 8);
+    let c = dot3(m, n);
+    ((d2 <= r2) & (c > 0.0) & (4.0 * c * c > dot3(m, m)), d2)
 }
 
 /// Sums the photons of visited cells within `r2` of `x` on the side `n`.

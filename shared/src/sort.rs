@@ -2,7 +2,7 @@
 //! index sorts photons by cell with them. Every item first takes its place among its key's:
 //!
 //! 1. `count_rank`: `ranks[i] = counts[key[i]]++` (atomic; keys ≥ `cells` are left out), and
-//!    with segments, `segments[key[i] / seg]++`.
+//!    with segments, `segments[key[i] / seg]++` (item 0 also zeroes the total, `start`).
 //!
 //! Then the keys' offsets, one of two ways:
 //!
@@ -15,9 +15,9 @@
 //!   counted). 2 L + 1 dispatches for L levels (3.5 M cells: 9).
 //! * by segments, in one dispatch: keys come in segments of `seg` consecutive keys (a photon
 //!   grid's block of cells); `segment_offsets` gives each segment that holds items a range of
-//!   slots by one atomic addition to a total and writes its keys' offsets within it, in key
-//!   order (it zeroes the counts it read, and the offsets of a segment emptied since an earlier
-//!   sort: only the total is cleared before the next; never-written segments stay 0). Segments
+//!   slots by one atomic addition to a total (the word after the segments' counts,
+//!   `total_slot`) and writes its keys' offsets within it, in key order (it zeroes the offsets
+//!   of a segment emptied since an earlier sort; never-written segments stay 0). Segments
 //!   lie in whatever order their additions happened, so a key's offset is at
 //!   `segment_slot(key, seg)` (`seg + 1` entries per segment, the last its end) and only keys
 //!   of one segment are contiguous — all a query of runs inside segments needs, without a
@@ -25,7 +25,12 @@
 //!
 //! 2. `scatter`: item i goes to `order[offsets[slot] + ranks[i]]` (no atomics; `slot` the key,
 //!    or `segment_slot` of it). A caller can place its own records there instead (the photon
-//!    index writes the photons themselves).
+//!    index writes the photons themselves). The item of rank 0 zeroes its key's count
+//!    (`release`): every key counted has one, and nothing reads the counts after the offsets,
+//!    so a sort leaves its counts zeroed for the next without a pass over all of them.
+//!
+//! So a sort needs no clearing before it: its buffers start zeroed (as allocated) and every
+//! sort leaves them ready for the next (a caller that counts without scattering clears them).
 //!
 //! Within a key the order of items is whatever order the atomic increments happened in (on a
 //! GPU, not deterministic), and so is the order of segments; each key's range holds exactly
@@ -56,10 +61,26 @@ pub fn rank<C: AtomicStore + ?Sized, S: AtomicStore + ?Sized>(key: u32, p: &Sort
     counts.atomic_add(key as usize, 1)
 }
 
-/// Item `i` takes its place among the items of its key: `ranks[i]` (`rank`; keys ≥ `p.cells`
-/// are left out, their rank 0 and never used).
+/// Where the total of a sort by segments is (the items given slots so far by
+/// `segment_offsets`): the word after the segments' counts, `segments[p.cells / p.segment]`.
 #[inline(always)]
-pub fn count_rank<C: AtomicStore + ?Sized, S: AtomicStore + ?Sized, R: Store<u32> + ?Sized>(
+pub fn total_slot(p: &SortParams) -> usize {
+    (p.cells / p.segment) as usize
+}
+
+/// The count pass's item `i`: item 0 of a sort by segments zeroes the total for the offsets
+/// pass that follows (nothing reads or adds to it during counting).
+#[inline(always)]
+pub fn start<S: Store<u32> + ?Sized>(i: u32, p: &SortParams, segments: &mut S) {
+    if i == 0 && p.segment > 0 {
+        segments.store(total_slot(p), 0);
+    }
+}
+
+/// Item `i` takes its place among the items of its key: `ranks[i]` (`rank`; keys ≥ `p.cells`
+/// are left out, their rank 0 and never used); `start`.
+#[inline(always)]
+pub fn count_rank<C: AtomicStore + ?Sized, S: AtomicStore + Store<u32> + ?Sized, R: Store<u32> + ?Sized>(
     i: u32,
     p: &SortParams,
     keys: &[u32],
@@ -67,6 +88,7 @@ pub fn count_rank<C: AtomicStore + ?Sized, S: AtomicStore + ?Sized, R: Store<u32
     segments: &mut S,
     ranks: &mut R,
 ) {
+    start(i, p, segments);
     if i < p.count {
         ranks.store(i as usize, rank(keys[i as usize], p, counts, segments));
     }
@@ -161,21 +183,14 @@ pub const SEGMENT_WRITTEN: u32 = 1 << 31;
 
 /// Segment `s` of `p.cells / seg` (`p.cells` keys in segments of `seg = p.segment`, holding
 /// `segments[s]` items): its `seg + 1` offsets (`segment_slot`), from a range of slots taken by
-/// one atomic addition to `total[0]`. The sort cleans up behind itself, so that only `total`
-/// needs clearing before the next (the other buffers are as large as the keys: clearing them
-/// took about a quarter of the photon index's time): the segment's counts are read and zeroed,
-/// and it is marked `SEGMENT_WRITTEN`; a segment without items whose offsets were written by
-/// an earlier sort zeroes them (empty ranges) and its mark, and one never written writes
-/// nothing. Counts and segments start zeroed (as allocated).
+/// one atomic addition to the total (`segments[total_slot]`, zeroed by the count pass,
+/// `start`). The sort cleans up behind itself, so that nothing needs clearing before the next
+/// (the buffers are as large as the keys: clearing them took about a quarter of the photon
+/// index's time): the segment is marked `SEGMENT_WRITTEN` (its counts are zeroed by the
+/// scatter, `release`); a segment without items whose offsets were written by an earlier sort
+/// zeroes them (empty ranges) and its mark, and one never written writes nothing.
 #[inline(always)]
-pub fn segment_offsets<C: Store<u32> + ?Sized, S: Store<u32> + ?Sized, T: AtomicStore + ?Sized, O: Store<u32> + ?Sized>(
-    s: u32,
-    p: &SortParams,
-    counts: &mut C,
-    segments: &mut S,
-    total: &mut T,
-    offsets: &mut O,
-) {
+pub fn segment_offsets<S: Store<u32> + AtomicStore + ?Sized, O: Store<u32> + ?Sized>(s: u32, p: &SortParams, counts: &[u32], segments: &mut S, offsets: &mut O) {
     let seg = p.segment;
     if seg == 0 || s >= p.cells / seg {
         return;
@@ -194,26 +209,37 @@ pub fn segment_offsets<C: Store<u32> + ?Sized, S: Store<u32> + ?Sized, T: Atomic
         }
         return;
     }
-    let mut v = total.atomic_add(0, n);
+    let mut v = segments.atomic_add(total_slot(p), n);
     let mut k = 0;
     while k < seg {
         offsets.store((out + k) as usize, v);
-        v = v.wrapping_add(counts.load((first + k) as usize));
-        counts.store((first + k) as usize, 0);
+        v = v.wrapping_add(counts[(first + k) as usize]);
         k += 1;
     }
     offsets.store((out + seg) as usize, v);
     segments.store(s as usize, SEGMENT_WRITTEN);
 }
 
-/// Item `i` to its slot: `order[offsets[offset_slot(key)] + ranks[i]] = i` (keys ≥ `p.cells`
-/// are left out).
+/// After the offsets: the item of rank `rank` among key `key`'s zeroes the key's count if it
+/// is the first (rank 0), so that the sort leaves every count zeroed for the next (a key that
+/// was counted has exactly one such item; nothing reads the counts after the offsets).
 #[inline(always)]
-pub fn scatter<O: Store<u32> + ?Sized>(i: u32, p: &SortParams, keys: &[u32], ranks: &[u32], offsets: &[u32], order: &mut O) {
+pub fn release<C: Store<u32> + ?Sized>(key: u32, rank: u32, counts: &mut C) {
+    if rank == 0 {
+        counts.store(key as usize, 0);
+    }
+}
+
+/// Item `i` to its slot: `order[offsets[offset_slot(key)] + ranks[i]] = i` (keys ≥ `p.cells`
+/// are left out); the first of a key zeroes its count (`release`).
+#[inline(always)]
+pub fn scatter<C: Store<u32> + ?Sized, O: Store<u32> + ?Sized>(i: u32, p: &SortParams, keys: &[u32], ranks: &[u32], offsets: &[u32], counts: &mut C, order: &mut O) {
     if i < p.count {
         let k = keys[i as usize];
         if k < p.cells {
-            order.store((offsets[offset_slot(k, p) as usize] + ranks[i as usize]) as usize, i);
+            let rank = ranks[i as usize];
+            order.store((offsets[offset_slot(k, p) as usize] + rank) as usize, i);
+            release(k, rank, counts);
         }
     }
 }

@@ -573,27 +573,26 @@ impl<'t> PhotonMap<'t> {
         self.sort.record_reset(c)
     }
 
-    /// The first `steps` of the index build (1: the clear, keys and ranks, then a reset of the
-    /// sort's buffers for the next index (`record_index_reset`); 2: + the cells' offsets; 3: +
-    /// the photons placed), for timing the parts. Fewer than 3 leave the index unfinished: by
-    /// segments, the offsets need not match the photons placed before.
+    /// The first `steps` of the index build (1: keys and ranks; 2: + the cells'
+    /// offsets; 3: + the photons placed, which zeroes the counts again), for timing the parts;
+    /// fewer than 3 end with a reset of the sort's buffers for the next index
+    /// (`record_index_reset`) and leave the index unfinished: by segments, the offsets need
+    /// not match the photons placed before.
     pub fn record_index_steps(&self, c: &mut crate::runtime::Commands, pass: u32, steps: u32) -> Result<()> {
         let rt = self.t.rt;
         let p = self.index_params(pass, self.capacity);
         let s = &self.sort;
-        s.record_clear(c)?;
         rt.dispatch(c, &PhotonKeys { params: p, index: self.index_binds(), photons: &self.records, counter: &self.counter, keys: &self.keys, counts: &s.counts, segments: &s.segments, ranks: &s.ranks })?;
         if steps > 1 {
             s.record_offsets(c)?;
-        } else {
-            // Counts left for the next index to add to: cleared (`record_reset`).
-            s.record_reset(c)?;
         }
         if steps > 2 {
-            let k = PlacePhotons { params: p, photons: &self.records, keys: &self.keys, ranks: &s.ranks, offsets: &s.offsets, words: &self.sorted, powers: &self.sorted_powers };
-            rt.dispatch(c, &k)?;
+            let k = PlacePhotons { params: p, photons: &self.records, keys: &self.keys, ranks: &s.ranks, offsets: &s.offsets, counts: &s.counts, words: &self.sorted, powers: &self.sorted_powers };
+            rt.dispatch(c, &k)
+        } else {
+            // Counts left for the next index to add to: cleared (`record_reset`).
+            s.record_reset(c)
         }
-        Ok(())
     }
 
     /// What the global map's gathers at every `stride`-th of the first `count` paths of `fb`

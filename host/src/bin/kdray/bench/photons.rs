@@ -88,7 +88,7 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
     o.progress.set_length(specs.len() as u64 * 2);
     let speed_header: Vec<String> = [
         "scene", "triangles", "photons", "rays traced", "bounces", "bounces/photon", "stored", "trace ms", "M bounces/s", "BVH trace ms", "BVH M bounces/s",
-        "split trace ms", "trace parts: emit only / first hit only / no stores ms", "index grid ms", "grid clear+keys+ranks / offsets / place ms", "cells, slots", "index kd ms", "eye ms", "BVH eye ms", "gather grid ms", "gather grid: found / tested per point", "gather grid at ~50 found ms (found / tested)", "gather grid, 8×8 tiles: default / ~50 found ms", "gather grid 2r ms", "gather kd ms", "BVH eye + final gather + gather ms", "image",
+        "split trace ms", "trace parts: emit only / first hit only / no stores ms", "index grid ms", "grid keys+ranks / offsets / place ms", "cells, slots", "index kd ms", "eye ms", "BVH eye ms", "gather grid ms", "gather grid: found / tested per point", "gather grid at ~50 found ms (found / tested)", "gather grid, 8×8 tiles: default / ~50 found ms", "gather grid 2r ms", "gather kd ms", "BVH eye + final gather + gather ms", "image",
     ]
     .map(String::from)
     .to_vec();
@@ -146,8 +146,8 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
         // last of these left it, and by segments a rerun of the offsets alone need not give
         // the blocks the places the photons were put at.
         let steps: Vec<f64> = (1..=2).map(|s| time_recorded(rt, copies, &|c| grid.record_index_steps(c, 0, s))).collect::<Result<_>>()?;
-        // Step 1 resets the sort's buffers after it (the next index would add to its counts):
-        // not part of an index.
+        // Steps 1 and 2 reset the sort's buffers after them (the next index would add to its
+        // counts): not part of an index.
         let reset = time_recorded(rt, copies, &|c| grid.record_index_reset(c))?;
         let index_grid = time_recorded(rt, copies, &|c| grid.record_index(c, 0))?;
         let (cells, slots) = grid.index_size();
@@ -215,7 +215,7 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
             format!("{split_ms:.3}"),
             format!("{:.3} / {:.3} / {:.3}", parts[0], parts[1], parts[2]),
             format!("{index_grid:.3}"),
-            format!("{:.3} / {:.3} / {:.3}", steps[0] - reset, steps[1] - steps[0] + reset, index_grid - steps[1]),
+            format!("{:.3} / {:.3} / {:.3}", steps[0] - reset, steps[1] - steps[0], index_grid - steps[1] + reset),
             format!("{cells}, {slots}"),
             format!("{index_kd:.3}"),
             eye_ms,
