@@ -624,11 +624,13 @@ impl Kernel for CountRank<'_> {
         vec![read("keys", self.keys), write("counts", self.counts), write("segments", self.segments), write("ranks", self.ranks)]
     }
     fn threads(&self) -> u32 {
-        self.params.count
+        // Item 0 runs even without items: it zeroes the total (`sort::start`).
+        self.params.count.max(1)
     }
     fn run(&self, t: u32) {
         // SAFETY: called by the native runtime during the dispatch of this pass, which holds
-        // its bindings; items add to `counts` and `segments` atomically and write ranks[t] only.
+        // its bindings; items add to `counts` and `segments` atomically and write ranks[t]
+        // only, and item 0 the total (a word of `segments` no item adds to in this pass).
         unsafe {
             let (mut counts, mut segments) = (self.counts.host_store(), self.segments.host_store());
             sort::count_rank(t, &self.params, self.keys.host(), &mut counts, &mut segments, &mut self.ranks.host_store())
@@ -991,12 +993,13 @@ impl Kernel for PhotonKeys<'_> {
         b
     }
     fn threads(&self) -> u32 {
-        self.params.count
+        // Item 0 runs even without slots: it zeroes the sort's total (`sort::start`).
+        self.params.count.max(1)
     }
     fn run(&self, t: u32) {
         // SAFETY: called by the native runtime during the dispatch of this pass, which holds
         // its bindings; item t writes keys[t] and ranks[t] only, and adds to the counts
-        // atomically.
+        // atomically; item 0 writes the total (a word of `segments` no item adds to here).
         unsafe {
             let (photons, counter, mut keys) = (self.photons.host(), self.counter.host(), self.keys.host_store());
             let (mut counts, mut segments, mut ranks) = (self.counts.host_store(), self.segments.host_store(), self.ranks.host_store());

@@ -1,5 +1,5 @@
-//! Counting sort by cell on either runtime, from the `kdray_shared::sort` kernels: clear the
-//! histogram, count (each item's rank among its key's), the keys' offsets, scatter. The offsets
+//! Counting sort by cell on either runtime, from the `kdray_shared::sort` kernels: count (each
+//! item's rank among its key's), the keys' offsets, scatter. The offsets
 //! come exact, in key order (sum chunks of 32 up the levels until at most 32 are left, scan
 //! those in one item, turn the prefixes into each level's below them down to the cells'
 //! offsets: 2 L + 1 dispatches for L = max(1, ⌈log32 cells⌉ − 1) levels), or by segments of

@@ -449,11 +449,13 @@ pub trait CellVisitor {
 
 impl SortedPhotons<'_> {
     /// The photons of a run of cells whose offsets are at `first..end` (`offset_slot`): from
-    /// `offsets[first]` to `offsets[end]`, the end clamped to the words held, so that every
-    /// photon of the range can be loaded without a bounds check (`word`).
+    /// `offsets[first]` to `offsets[end]`, both clamped to the words held, so that every
+    /// photon of the range can be loaded without a bounds check (`word`), and a step past its
+    /// start cannot wrap (the words of a binding number fewer than 2^31).
     #[inline(always)]
     pub fn run(&self, first: u32, end: u32) -> (u32, u32) {
-        (self.offsets[first as usize], self.offsets[end as usize].min(self.words.len() as u32))
+        let b = self.offsets[end as usize].min(self.words.len() as u32);
+        (self.offsets[first as usize].min(b), b)
     }
     /// Photon `j`'s word, for `j` below the end of a range of `run`.
     ///
