@@ -610,6 +610,9 @@ impl<'t> PhotonMap<'t> {
         }
         impl CellVisitor for Count {
             fn word(&mut self, w: glam::UVec4, _j: u32, _sorted: &SortedPhotons) {
+                if kdray_shared::photon::is_padding(w) {
+                    return;
+                }
                 self.visited += 1;
                 self.found += in_disc(w, self.x, self.n, self.r2).0 as u64;
             }
