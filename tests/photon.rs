@@ -14,7 +14,7 @@ use kdray::runtime::cpu::NATIVE;
 use kdray::scene::{self, CameraSpec, PointLight, Scene, Spot};
 use kdray::{Runtime, Tracer};
 use kdray_shared::kdtree::Algorithm;
-use kdray_shared::photon::{cell_range, emission_numbers, emit_photon, irradiance, HashGrid, KdCells, PhotonIndex, PhotonWord, SortedPhotons};
+use kdray_shared::photon::{cell_range, emission_numbers, emit_photon, irradiance, HashGrid, KdCells, PhotonIndex, PhotonWord, SortedPhotons, WordFrame};
 use kdray_shared::{Material, Photon, PhotonParams, INDEX_KD, PHOTON_SOBOL};
 
 fn runtimes() -> Vec<&'static dyn Runtime> {
@@ -135,20 +135,38 @@ fn small_options(index: IndexKind, photons: u32) -> PhotonOptions {
     PhotonOptions { photons, passes: 1, index, final_gather: FinalGather::Off, ..Default::default() }
 }
 
-/// Checks an index built on `rt` against the records: a permutation, every photon in its own
-/// cell, and gathers equal to brute force.
+/// Checks an index built on `rt` against the records: a permutation of their words, every
+/// photon in its own cell, and gathers equal to brute force over the words.
 fn check_index(map: &PhotonMap, tree: &KdTreeData, records: &[Photon], what: &str, pass: u32) {
     let (sorted, offsets) = map.read_index().unwrap();
-    let words: Vec<PhotonWord> = sorted.iter().map(PhotonWord::of).collect();
-    let powers: Vec<u32> = sorted.iter().map(|p| p.power).collect();
-    let view = SortedPhotons { words: &words, powers: &powers, offsets: &offsets };
-    let key = |p: &Photon| (p.position.map(f32::to_bits), p.power, p.packed);
-    let mut a: Vec<_> = records.iter().map(key).collect();
-    let mut b: Vec<_> = sorted.iter().map(key).collect();
+    let view = SortedPhotons { words: &sorted, offsets: &offsets };
+    let p = map.index_params(pass, 0);
+    let frame = WordFrame::new(&p);
+    // The words of the records; a word's positions (several records may share a word).
+    let mut of_word: std::collections::HashMap<PhotonWord, Vec<[f32; 3]>> = Default::default();
+    for r in records {
+        let w = PhotonWord::of(r, &frame);
+        let q = frame.position(w.word);
+        for a in 0..3 {
+            // Within half a step of where the photon landed, plus the rounding of the frame's
+            // origin (up to half a step more) and of the decoding.
+            let round = 1.2e-7 * (p.bounds_min[a].abs() + r.position[a].abs());
+            assert!((q[a] - r.position[a]).abs() <= frame.step[a] + round, "{what}: word at {q:?} for a photon at {:?}", r.position);
+        }
+        assert_eq!((w.normal_bits(), w.power()), (r.packed & 0xffff, r.power()), "{what}: a word's normal or power is not its photon's");
+        of_word.entry(w).or_default().push(r.position);
+    }
+    // The word that pads a gather step counts nowhere, not even at its own coordinates.
+    for n in [[0.0, 0.0, -1.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, -1.0, 0.0]] {
+        let pad = kdray_shared::photon::PADDING;
+        let disc = kdray_shared::photon::Disc::new(&p, frame.position(pad), n, p.radius[0]);
+        assert!(!disc.test(pad).0, "{what}: the padding word counts in a gather");
+    }
+    let mut a: Vec<_> = records.iter().map(|r| PhotonWord::of(r, &frame).word.to_array()).collect();
+    let mut b: Vec<_> = sorted.iter().map(|w| w.word.to_array()).collect();
     a.sort();
     b.sort();
     assert!(a == b, "{what}: the sorted photons are not the stored ones ({} vs {})", a.len(), b.len());
-    let p = map.index_params(pass, 0);
     let table = map.leaf_table(pass);
     let kd;
     let grid = HashGrid::new(&p);
@@ -158,16 +176,18 @@ fn check_index(map: &PhotonMap, tree: &KdTreeData, records: &[Photon], what: &st
     } else {
         &|x, m| grid.cell(x, m)
     };
-    let mut placed = 0;
+    // Each placed word with its map (the caustic map's cells follow the global map's).
+    let mut placed: Vec<(PhotonWord, u32)> = Vec::new();
     for c in 0..p.cells * p.maps {
         let (a, b) = cell_range(&p, &offsets, c);
-        placed += b - a;
-        for ph in &sorted[a as usize..b as usize] {
-            let m = if p.maps > 1 && ph.is_caustic() { 1 } else { 0 };
-            assert_eq!(index(ph.position, m), c, "{what}: a photon in the wrong cell");
+        let m = c / p.cells;
+        for w in &sorted[a as usize..b as usize] {
+            let at = &of_word[w];
+            assert!(at.iter().any(|&x| index(x, m) == c), "{what}: a photon in the wrong cell");
+            placed.push((*w, m));
         }
     }
-    assert_eq!(placed as usize, sorted.len(), "{what}: the cells do not hold every placed photon once");
+    assert_eq!(placed.len(), sorted.len(), "{what}: the cells do not hold every placed photon once");
     // Gathers at photon positions (offset) against brute force.
     let gather = |x: [f32; 3], n: [f32; 3], m: u32| -> kdray_shared::photon::Estimate {
         if p.kind == INDEX_KD {
@@ -183,10 +203,10 @@ fn check_index(map: &PhotonMap, tree: &KdTreeData, records: &[Photon], what: &st
     // a photon along an axis.
     let cell_size = |m: u32| p.radius[m as usize] * 2.0 / (kdray_shared::photon::grid_window(p.grid) - 1) as f32;
     let snap = |x: f32, o: f32, c: f32| o + ((x - o) / c).round() * c;
-    for (k, ph) in sorted.iter().step_by((sorted.len() / 1200).max(1)).enumerate() {
-        let m = if p.maps > 1 && ph.is_caustic() { 1 } else { 0 };
+    for (k, (ph, m)) in placed.iter().step_by((placed.len() / 1200).max(1)).enumerate() {
+        let m = *m;
         let r = p.radius[m as usize];
-        let q = ph.position;
+        let q = ph.position(&frame);
         let (c, o) = (cell_size(m), p.bounds_min);
         let x = match k % 4 {
             0 => [q[0] + 0.3 * r * ((k % 3) as f32 - 1.0), q[1], q[2] + 0.2 * r],
@@ -198,8 +218,8 @@ fn check_index(map: &PhotonMap, tree: &KdTreeData, records: &[Photon], what: &st
         let est = gather(x, n, m);
         let (e, found) = (est.irradiance, est.found);
         let (mut want, mut count) = ([0.0f64; 3], 0);
-        for q in sorted.iter().filter(|q| (p.maps > 1 && q.is_caustic()) as u32 == m) {
-            let d = Vec3::from(q.position) - Vec3::from(x);
+        for (q, _) in placed.iter().filter(|(_, qm)| *qm == m) {
+            let d = Vec3::from(q.position(&frame)) - Vec3::from(x);
             if d.length_squared() > r * r {
                 continue;
             }

@@ -1030,10 +1030,9 @@ pub struct PlacePhotons<'a> {
     pub offsets: &'a Buffer<u32>,
     /// The sort's counts per cell: zeroed for the next index, each by its cell's first photon.
     pub counts: &'a Buffer<u32>,
-    /// Written: the placed records' positions and packed words in cell order.
+    /// Written: the placed records' words (`PhotonWord`: position, normal, power) in cell
+    /// order.
     pub words: &'a Buffer<PhotonWord>,
-    /// Written: their powers, in the same order.
-    pub powers: &'a Buffer<u32>,
 }
 
 impl Kernel for PlacePhotons<'_> {
@@ -1051,7 +1050,6 @@ impl Kernel for PlacePhotons<'_> {
             read("offsets", self.offsets),
             write("counts", self.counts),
             write("words", self.words),
-            write("powers", self.powers),
         ]
     }
     fn threads(&self) -> u32 {
@@ -1062,8 +1060,8 @@ impl Kernel for PlacePhotons<'_> {
         // its bindings; ranks make every placed photon's slot its own, and only a cell's
         // photon of rank 0 writes its count.
         unsafe {
-            let (mut counts, mut words, mut powers) = (self.counts.host_store(), self.words.host_store(), self.powers.host_store());
-            photon::place(t, &self.params, self.photons.host(), self.keys.host(), self.ranks.host(), self.offsets.host(), &mut counts, &mut words, &mut powers)
+            let (mut counts, mut words) = (self.counts.host_store(), self.words.host_store());
+            photon::place(t, &self.params, self.photons.host(), self.keys.host(), self.ranks.host(), self.offsets.host(), &mut counts, &mut words)
         }
     }
 }
@@ -1077,11 +1075,9 @@ pub struct Gather<'a> {
     pub index: IndexBinds<'a>,
     /// Each path's ray slot; at a gather point, the point (origin) and its normal (direction).
     pub rays: &'a Buffer<Ray>,
-    /// The photons' positions and packed words in cell order (`PlacePhotons`).
+    /// The photons' words in cell order (`PlacePhotons`).
     pub words: &'a Buffer<PhotonWord>,
-    /// Their powers, in the same order.
-    pub powers: &'a Buffer<u32>,
-    /// Cell offsets into `words` and `powers` (`photon::cell_range`: cell c's from its
+    /// Cell offsets into `words` (`photon::cell_range`: cell c's from its
     /// `offset_slot` s, `offsets[s]..offsets[s + 1]`).
     pub offsets: &'a Buffer<u32>,
     /// Read and written: each path's state; a path at a gather point gains the photons' radiance.
@@ -1103,7 +1099,7 @@ impl Kernel for Gather<'_> {
         bytemuck::bytes_of(&self.params)
     }
     fn bindings(&self) -> Vec<Bind<'_>> {
-        let mut b = vec![read("rays", self.rays), read("words", self.words), read("powers", self.powers), read("offsets", self.offsets)];
+        let mut b = vec![read("rays", self.rays), read("words", self.words), read("offsets", self.offsets)];
         b.extend(self.index.binds());
         b.extend([write("paths", self.paths), read("points", self.points), write("next_points", self.next_points)]);
         b
@@ -1118,7 +1114,7 @@ impl Kernel for Gather<'_> {
         // atomically and writes the slot that returned.
         unsafe {
             let (rays, mut paths, points, mut next) = (self.rays.host(), self.paths.host_store(), self.points.host(), self.next_points.host_store());
-            let sorted = SortedPhotons { words: self.words.host(), powers: self.powers.host(), offsets: self.offsets.host() };
+            let sorted = SortedPhotons { words: self.words.host(), offsets: self.offsets.host() };
             match self.index {
                 IndexBinds::Grid => photon::gather(t, &self.params, &HashGrid::new(&self.params), rays, &sorted, &mut paths, points, &mut next),
                 IndexBinds::Kd { nodes, leaves } => {

@@ -89,9 +89,8 @@ pub fn place_photons(
     #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] offsets: &[u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] counts: &mut [u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] words: &mut [PhotonWord],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] powers: &mut [u32],
 ) {
-    photon::place(crate::item(id, groups), params, photons, keys, ranks, offsets, counts, words, powers);
+    photon::place(crate::item(id, groups), params, photons, keys, ranks, offsets, counts, words);
 }
 
 #[spirv(compute(threads(64)))]
@@ -101,13 +100,12 @@ pub fn gather_grid(
     #[spirv(push_constant)] params: &IndexParams,
     #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] rays: &[Ray],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] words: &[PhotonWord],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] powers: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] offsets: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] paths: &mut [PathState],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] points: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] next_points: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] offsets: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] paths: &mut [PathState],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] points: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] next_points: &mut [u32],
 ) {
-    let sorted = SortedPhotons { words, powers, offsets };
+    let sorted = SortedPhotons { words, offsets };
     photon::gather(crate::item(id, groups), params, &HashGrid::new(params), rays, &sorted, paths, points, &mut Atomics(next_points));
 }
 
@@ -118,16 +116,15 @@ pub fn gather_kd(
     #[spirv(push_constant)] params: &IndexParams,
     #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] rays: &[Ray],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] words: &[PhotonWord],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] powers: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] offsets: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] nodes: &[KdNode],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] leaves: &[LeafCells],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] paths: &mut [PathState],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] points: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] next_points: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] offsets: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] nodes: &[KdNode],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] leaves: &[LeafCells],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] paths: &mut [PathState],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] points: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] next_points: &mut [u32],
 ) {
     let index = KdCells { nodes, leaves, cells: params.cells };
-    let sorted = SortedPhotons { words, powers, offsets };
+    let sorted = SortedPhotons { words, offsets };
     photon::gather(crate::item(id, groups), params, &index, rays, &sorted, paths, points, &mut Atomics(next_points));
 }
 

@@ -28,7 +28,7 @@ use crate::query::{Answer, Closest, Near, Query};
 use crate::trace::Method;
 use crate::kernel::{AtomicStore, Store};
 use crate::math::{
-    add3, cosine_direction, cross3, direction_around, dist2_point_segment, dist2_point_triangle, dot3, exp2i, floor_u32, fract_pos, mul3,
+    add3, cosine_direction, cross3, direction_around, dist2_point_segment, dist2_point_triangle, dot3, exp2i, floor_u32, fma, fract_pos, mul3,
     normalize3, scale3, sqrt, sub3,
 };
 use crate::parts::Parts;
@@ -108,8 +108,8 @@ pub fn encode_oct(n: [f32; 3], bits: u32) -> u32 {
 }
 
 /// The direction of an `encode_oct` word of 2 × `bits` bits, not normalised (a point of the
-/// octahedron |x| + |y| + |z| = 1): enough for a test of the angle to another vector
-/// (`in_disc`), without the square root and division of `decode_oct`.
+/// octahedron |x| + |y| + |z| = 1): enough for a test of the angle to another vector, without
+/// the square root and division of `decode_oct` (`Disc::test` uses it scaled: `word_normal`).
 #[inline(always)]
 pub fn oct_vector(v: u32, bits: u32) -> [f32; 3] {
     let mask = (1u32 << bits) - 1;
@@ -167,42 +167,144 @@ impl Photon {
     }
 }
 
-/// A photon of the index (cell order) as the gather reads it first: its position (`f32` bits)
-/// and `Photon::packed` in one 16-byte word, loaded in one vector access. Its power is in an
-/// array of its own (`SortedPhotons::powers`), read only for photons inside the gather disc.
+/// Bits of a photon word's coordinates: each axis of the scene box in at most 2^23 − 1 steps
+/// of a power of two, within twice as fine as `f32` at the box's far corner.
+pub const WORD_BITS: u32 = 23;
+/// `PhotonWord::word.z`'s bit that marks a word padding a gather step (`is_padding`), not a
+/// photon.
+const PADDING_BIT: u32 = 1 << 31;
+/// The word that pads a gather step (`CellVisitor::word`).
+pub const PADDING: UVec4 = UVec4::new(0, 0, PADDING_BIT, 0);
+/// 2^23: `biased(m)` is 2^23 + m.
+const TWO_23: f32 = 8_388_608.0;
+
+/// 2^23 + `m` for `m` < 2^23, exactly, by setting the bits of `m` under the exponent of 2^23: a
+/// bitwise or instead of an integer-to-float conversion, which GPUs run at a fraction of the
+/// rate of float arithmetic (the gather converts eight fields of every photon it tests). The
+/// bias cancels in a multiply-add by a power of two s: `biased(m) · s` is exact, so
+/// `fma(biased(m), s, c)` is the same fused or not (Vulkan lets a driver split an `fma`).
+#[inline(always)]
+fn biased(m: u32) -> f32 {
+    f32::from_bits(m | 0x4b00_0000)
+}
+
+/// A photon of the index (cell order) as the gather reads it: everything a gather needs in one
+/// 16-byte word, loaded in one vector access — its position in fixed point over the scene box
+/// (`WordFrame`, 23 bits an axis), its normal (`Photon::packed`'s 16 bits: the octahedral
+/// coordinates' two bytes) and its power (RGB9E5).
+///
+/// Bits: `x` = qx | normal's first byte << 24; `y` = qy | its second byte << 24; `z` = qz
+/// (bit 31: `is_padding`); `w` = power.
 #[repr(C)]
-#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Hash, Pod, Zeroable)]
 pub struct PhotonWord {
-    /// x, y, z bits and the packed normal, direction and bits.
+    /// Coordinates, normal and power, packed as the type says.
     pub word: UVec4,
 }
 
-impl PhotonWord {
-    /// The word of `ph`.
+/// The fixed-point frame of photon words (`PhotonWord`): the scene box of an index's
+/// parameters cut into steps of a power of two, at most 2^23 − 1 per axis. Coordinate q
+/// decodes to `fma(biased(q), step, origin)`, `origin` = `min` − 2^23 · `step` (rounded), one
+/// rounding on every runtime, fused or not (`biased`).
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct WordFrame {
+    /// The box's minimum corner (q = 0).
+    pub min: [f32; 3],
+    /// One step per axis (a power of two, or 0 for a box without extent along the axis).
+    pub step: [f32; 3],
+    /// Steps per unit per axis (0 for a box without extent along the axis).
+    pub inv: [f32; 3],
+    /// `min` − 2^23 · `step`: the decoding's offset (`biased`).
+    pub origin: [f32; 3],
+}
+
+impl WordFrame {
+    /// The frame of the scene box of `p`.
     #[inline(always)]
-    pub fn of(ph: &Photon) -> PhotonWord {
-        PhotonWord { word: UVec4::new(ph.position[0].to_bits(), ph.position[1].to_bits(), ph.position[2].to_bits(), ph.packed) }
+    pub fn new(p: &IndexParams) -> WordFrame {
+        let top = ((1u32 << WORD_BITS) - 1) as f32;
+        let e = sub3(p.bounds_max, p.bounds_min);
+        // The least power of two at least extent / top (2^-126 for subnormal quotients).
+        let step = |x: f32| {
+            let b = (x / top).to_bits();
+            if !(x > 0.0) || b >= 0x7f80_0000 {
+                0.0
+            } else if b & 0x7f_ffff == 0 {
+                f32::from_bits(b)
+            } else {
+                f32::from_bits(((b & 0x7f80_0000) + 0x80_0000).max(0x80_0000))
+            }
+        };
+        let step = [step(e[0]), step(e[1]), step(e[2])];
+        let inv = |s: f32| if s > 0.0 { 1.0 / s } else { 0.0 };
+        let o = |a: usize| p.bounds_min[a] - TWO_23 * step[a];
+        WordFrame { min: p.bounds_min, step, inv: [inv(step[0]), inv(step[1]), inv(step[2])], origin: [o(0), o(1), o(2)] }
     }
-    /// Where the photon landed.
+    /// The nearest coordinates of a point (clamped to the box).
     #[inline(always)]
-    pub fn position(&self) -> [f32; 3] {
-        [f32::from_bits(self.word.x), f32::from_bits(self.word.y), f32::from_bits(self.word.z)]
+    pub fn encode(&self, x: [f32; 3]) -> [u32; 3] {
+        let top = (1u32 << WORD_BITS) - 1;
+        let q = |a: usize| floor_u32((x[a] - self.min[a]) * self.inv[a] + 0.5).min(top);
+        [q(0), q(1), q(2)]
     }
-    /// The whole record again, given its power word.
+    /// The position of word `w`.
     #[inline(always)]
-    pub fn photon(&self, power: u32) -> Photon {
-        Photon { position: self.position(), power, packed: self.word.w }
+    pub fn position(&self, w: UVec4) -> [f32; 3] {
+        const Q: u32 = (1 << WORD_BITS) - 1;
+        let c = |q: u32, a: usize| fma(biased(q & Q), self.step[a], self.origin[a]);
+        [c(w.x, 0), c(w.y, 1), c(w.z, 2)]
     }
 }
 
-/// The index's photons in cell order: cell c's are `offsets[s]..offsets[s + 1]` of `words`
-/// and `powers`, s its `offset_slot` (`cell_range`).
+impl PhotonWord {
+    /// The word of `ph` in `frame`.
+    #[inline(always)]
+    pub fn of(ph: &Photon, frame: &WordFrame) -> PhotonWord {
+        let q = frame.encode(ph.position);
+        let n = ph.packed & 0xffff;
+        PhotonWord { word: UVec4::new(q[0] | (n & 0xff) << 24, q[1] | (n >> 8) << 24, q[2], ph.power) }
+    }
+    /// Where the photon landed, to a step of `frame`.
+    #[inline(always)]
+    pub fn position(&self, frame: &WordFrame) -> [f32; 3] {
+        frame.position(self.word)
+    }
+    /// The octahedral normal's 16 bits (`Photon::packed`'s).
+    #[inline(always)]
+    pub fn normal_bits(&self) -> u32 {
+        (self.word.x >> 24) | (self.word.y >> 24) << 8
+    }
+    /// Unit surface normal on the side the photon arrived from.
+    #[inline(always)]
+    pub fn normal(&self) -> [f32; 3] {
+        decode_oct(self.normal_bits(), 8)
+    }
+    /// The photon's power (RGB).
+    #[inline(always)]
+    pub fn power(&self) -> [f32; 3] {
+        decode_rgb9e5(self.word.w)
+    }
+}
+
+/// 255 × `oct_vector` of a word's normal bytes, in whole numbers (exact: no rounding on any
+/// runtime; `biased` instead of conversions). The gather's normal test does not depend on the
+/// vector's length.
+#[inline(always)]
+fn word_normal(w: UVec4) -> [f32; 3] {
+    // 2b − 255 for byte b: 2 · biased(b) − 2^24 is exact, fused or not.
+    let x = fma(biased(w.x >> 24), 2.0, -2.0 * TWO_23) - 255.0;
+    let y = fma(biased(w.y >> 24), 2.0, -2.0 * TWO_23) - 255.0;
+    let z = 255.0 - x.abs() - y.abs();
+    let t = (-z).max(0.0);
+    [x + if x >= 0.0 { -t } else { t }, y + if y >= 0.0 { -t } else { t }, z]
+}
+
+/// The index's photons in cell order: cell c's are `offsets[s]..offsets[s + 1]` of `words`,
+/// s its `offset_slot` (`cell_range`).
 #[derive(Copy, Clone)]
 pub struct SortedPhotons<'a> {
-    /// Positions and packed words (`PhotonWord`).
+    /// The photons' words (`PhotonWord`).
     pub words: &'a [PhotonWord],
-    /// Powers (RGB9E5), in the same order.
-    pub powers: &'a [u32],
     /// Each cell's first photon, at the cell's `offset_slot`; its end at the next entry.
     pub offsets: &'a [u32],
 }
@@ -444,15 +546,15 @@ pub fn trace_photons<M: Method, O: Store<Photon> + ?Sized, C: AtomicStore + ?Siz
 /// slices crashed NVIDIA's SPIR-V compiler, driver 580.)
 pub trait CellVisitor {
     /// Visits photon `j` of `sorted`, whose word (`PhotonWord`) is `w` — or pads a step of
-    /// two photons: then `w`'s position is NaN (`is_padding`; no `in_disc` test counts it)
-    /// and `j` the photon just visited.
+    /// two photons: then `w` is `PADDING` (`is_padding`; no `Disc::test` counts it) and `j`
+    /// the photon just visited.
     fn word(&mut self, w: UVec4, j: u32, sorted: &SortedPhotons);
 }
 
-/// Whether a word passed to `CellVisitor::word` pads a step (its position NaN), not a photon.
+/// Whether a word passed to `CellVisitor::word` pads a step (`PADDING`), not a photon.
 #[inline(always)]
 pub fn is_padding(w: UVec4) -> bool {
-    f32::from_bits(w.x).is_nan()
+    w.z >= PADDING_BIT
 }
 
 impl SortedPhotons<'_> {
@@ -594,12 +696,12 @@ impl PhotonIndex for HashGrid {
         loop {
             if j < b {
                 // Two photons a step: both loads are issued before either is tested. A run's
-                // odd last photon is paired with itself, the copy's position NaN (counted by
-                // no test): no separate step for one photon, which the other lanes waited on.
+                // odd last photon is paired with `PADDING` (counted by no test): no separate
+                // step for one photon, which the other lanes waited on.
                 let j1 = (j + 1).min(b - 1);
                 // SAFETY: j ≤ j1 < b, and `run` clamps b to the words held.
                 let (w0, w1) = unsafe { (sorted.word(j), sorted.word(j1)) };
-                let w1 = if j1 > j { w1 } else { UVec4::splat(f32::NAN.to_bits()) };
+                let w1 = if j1 > j { w1 } else { PADDING };
                 v.word(w0, j, sorted);
                 v.word(w1, j1, sorted);
                 j = (j + 2).min(b);
@@ -780,12 +882,12 @@ pub fn cell_range(p: &IndexParams, offsets: &[u32], cell: u32) -> (u32, u32) {
     (offsets[s], offsets[s + 1])
 }
 
-/// Photon slot `i` into cell order: `words`, `powers` at its cell's offset plus its rank
-/// (slots without a cell are left out); the sort's scatter, so the first photon of a cell
-/// zeroes its count (`sort::release`).
+/// Photon slot `i` into cell order: its word (`PhotonWord`, in the frame of `p`'s scene box)
+/// at its cell's offset plus its rank (slots without a cell are left out); the sort's scatter,
+/// so the first photon of a cell zeroes its count (`sort::release`).
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-pub fn place<C: Store<u32> + ?Sized, W: Store<PhotonWord> + ?Sized, P: Store<u32> + ?Sized>(
+pub fn place<C: Store<u32> + ?Sized, W: Store<PhotonWord> + ?Sized>(
     i: u32,
     p: &IndexParams,
     photons: &[Photon],
@@ -794,16 +896,13 @@ pub fn place<C: Store<u32> + ?Sized, W: Store<PhotonWord> + ?Sized, P: Store<u32
     offsets: &[u32],
     counts: &mut C,
     words: &mut W,
-    powers: &mut P,
 ) {
     if i < p.count {
         let key = keys[i as usize];
         if key < p.cells * p.maps {
             let rank = ranks[i as usize];
             let slot = (offsets[offset_slot(p, key) as usize] + rank) as usize;
-            let ph = photons[i as usize];
-            words.store(slot, PhotonWord::of(&ph));
-            powers.store(slot, ph.power);
+            words.store(slot, PhotonWord::of(&photons[i as usize], &WordFrame::new(p)));
             crate::sort::release(key, rank, counts);
         }
     }
@@ -812,57 +911,76 @@ pub fn place<C: Store<u32> + ?Sized, W: Store<PhotonWord> + ?Sized, P: Store<u32
 // ---------------------------------------------------------------------------------------------
 // Gather
 
-/// Whether the photon of word `w` counts at a gather point `x` (unit normal `n`, radius²
-/// `r2`): within the radius, its surface's normal within 60° of `n` (photons on the back side
-/// or of another orientation never count). Also its distance² (the filters' argument).
-#[inline(always)]
-pub fn in_disc(w: UVec4, x: [f32; 3], n: [f32; 3], r2: f32) -> (bool, f32) {
-    let d = sub3([f32::from_bits(w.x), f32::from_bits(w.y), f32::from_bits(w.z)], x);
-    let d2 = dot3(d, d);
-    // cos > 0.5 for the photon's normal m, not normalised (`oct_vector`): c = m·n > 0 and
-    // 4c² > |m|² (no square root or division: this test runs for every photon visited). No
-    // branches: a subgroup's lanes pay for every side of one.
-    let m = oct_vector(w.w & 0xffff, 8);
-    let c = dot3(m, n);
-    ((d2 <= r2) & (c > 0.0) & (4.0 * c * c > dot3(m, m)), d2)
+/// A gather's disc: a point `x` with unit normal `n` (on the viewing side) and radius² `r2`,
+/// and the frame of the photon words it tests (`WordFrame`).
+#[derive(Copy, Clone, Debug)]
+pub struct Disc {
+    /// The words' frame.
+    pub frame: WordFrame,
+    /// The centre.
+    pub x: [f32; 3],
+    /// The unit normal on the viewing side.
+    pub n: [f32; 3],
+    /// The radius, squared.
+    pub r2: f32,
 }
 
-/// Sums the photons of visited cells within `r2` of `x` on the side `n`.
+impl Disc {
+    /// The disc of radius `r` at `x` (normal `n`) over the photon words of an index of `p`.
+    #[inline(always)]
+    pub fn new(p: &IndexParams, x: [f32; 3], n: [f32; 3], r: f32) -> Disc {
+        Disc { frame: WordFrame::new(p), x, n, r2: r * r }
+    }
+
+    /// Whether the photon of word `w` counts: within the radius, its surface's normal within 60°
+    /// of `n` (photons on the back side or of another orientation never count), not `PADDING`.
+    /// Also its distance² (the filters' argument).
+    #[inline(always)]
+    pub fn test(&self, w: UVec4) -> (bool, f32) {
+        let d = sub3(self.frame.position(w), self.x);
+        let d2 = dot3(d, d);
+        // cos > 0.5 for the photon's normal m, not normalised (`word_normal`): c = m·n > 0 and
+        // 4c² > |m|² (no square root or division: this test runs for every photon visited). No
+        // branches: a subgroup's lanes pay for every side of one.
+        let m = word_normal(w);
+        let c = dot3(m, self.n);
+        ((d2 <= self.r2) & (c > 0.0) & (4.0 * c * c > dot3(m, m)) & (w.z < PADDING_BIT), d2)
+    }
+}
+
+/// Sums the photons of visited cells within a disc.
 struct Sum {
-    x: [f32; 3],
-    n: [f32; 3],
-    r2: f32,
+    disc: Disc,
     filter: u32,
     sum: [f32; 3],
     found: u32,
 }
 
-impl Sum {
-    /// Photon `j`, whose word is `w`.
+impl CellVisitor for Sum {
+    /// One 16-byte word a photon: its place, normal and power.
     #[inline(always)]
-    fn add(&mut self, w: UVec4, j: u32, sorted: &SortedPhotons) {
-        // Branch-free: every photon's power is loaded and added, weighted 0 outside the disc
-        // (a branch made the lanes of a subgroup that counted nothing wait for those that did:
-        // 10 % of the gather on the H200).
-        let (counts, d2) = in_disc(w, self.x, self.n, self.r2);
+    fn word(&mut self, w: UVec4, _j: u32, _sorted: &SortedPhotons) {
+        // Branch-free: every photon's power is added, weighted 0 outside the disc (a branch
+        // made the lanes of a subgroup that counted nothing wait for those that did: 10 % of
+        // the gather on the H200).
+        let (counts, d2) = self.disc.test(w);
+        let r2 = self.disc.r2;
         let k = if self.filter == FILTER_CONE {
-            3.0 * (1.0 - sqrt(d2 / self.r2))
+            3.0 * (1.0 - sqrt(d2 / r2))
         } else if self.filter == FILTER_EPANECHNIKOV {
-            2.0 * (1.0 - d2 / self.r2)
+            2.0 * (1.0 - d2 / r2)
         } else {
             1.0
         };
         let k = if counts { k } else { 0.0 };
-        self.sum = add3(self.sum, scale3(decode_rgb9e5(sorted.powers[j as usize]), k));
+        // The power (RGB9E5, `decode_rgb9e5`): each mantissa m by `biased`, m · 2^(e − 24) in
+        // one multiply-add by a power of two (exact).
+        let v = w.w;
+        let s = exp2i((v >> 27) as i32 - 24);
+        let c = -TWO_23 * s;
+        let rgb = [fma(biased(v & 511), s, c), fma(biased((v >> 9) & 511), s, c), fma(biased((v >> 18) & 511), s, c)];
+        self.sum = add3(self.sum, scale3(rgb, k));
         self.found += counts as u32;
-    }
-}
-
-impl CellVisitor for Sum {
-    /// One 16-byte word decides most photons: those outside the disc.
-    #[inline(always)]
-    fn word(&mut self, w: UVec4, j: u32, sorted: &SortedPhotons) {
-        self.add(w, j, sorted);
     }
 }
 
@@ -880,7 +998,7 @@ pub struct Estimate {
 #[inline(always)]
 pub fn irradiance<I: PhotonIndex>(index: &I, p: &IndexParams, sorted: &SortedPhotons, x: [f32; 3], n: [f32; 3], map: u32) -> Estimate {
     let r = p.radius[map as usize];
-    let mut s = Sum { x, n, r2: r * r, filter: p.filter, sum: [0.0; 3], found: 0 };
+    let mut s = Sum { disc: Disc::new(p, x, n, r), filter: p.filter, sum: [0.0; 3], found: 0 };
     index.visit(x, r, map, sorted, &mut s);
     Estimate { irradiance: scale3(s.sum, 1.0 / (core::f32::consts::PI * r * r)), found: s.found }
 }

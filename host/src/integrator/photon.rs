@@ -243,10 +243,9 @@ pub struct PhotonMap<'t> {
     lists: Option<LeafLists>,
     /// The last traced pass's stored photons, in slot order (`capacity` slots).
     pub records: Buffer<Photon>,
-    /// The records' positions and packed words in cell order, after `record_index`.
+    /// The records' words (`PhotonWord`: position, normal, power) in cell order, after
+    /// `record_index`.
     pub sorted: Buffer<PhotonWord>,
-    /// Their powers, in the same order.
-    pub sorted_powers: Buffer<u32>,
     /// One word: the photons the last trace stored, including those past `capacity` (counted,
     /// not stored).
     pub counter: Buffer<u32>,
@@ -376,7 +375,6 @@ impl<'t> PhotonMap<'t> {
             lists: t.leaf_lists(accel, split)?,
             records: rt.alloc("photon", capacity as usize)?,
             sorted: rt.alloc("sorted photon", capacity as usize)?,
-            sorted_powers: rt.alloc("sorted photon power", capacity as usize)?,
             counter: rt.alloc("photon counter", 1)?,
             keys: rt.alloc("photon cell", capacity as usize)?,
             sort,
@@ -421,7 +419,6 @@ impl<'t> PhotonMap<'t> {
         let capacity = (stored as u64 * 5 / 4).min(u32::MAX as u64 / 2) as u32;
         self.records = rt.alloc("photon", capacity as usize)?;
         self.sorted = rt.alloc("sorted photon", capacity as usize)?;
-        self.sorted_powers = rt.alloc("sorted photon power", capacity as usize)?;
         self.keys = rt.alloc("photon cell", capacity as usize)?;
         self.capacity = capacity;
         self.cells = Self::cells_for(self.o.index, capacity, self.o.grid_window);
@@ -587,7 +584,7 @@ impl<'t> PhotonMap<'t> {
             s.record_offsets(c)?;
         }
         if steps > 2 {
-            let k = PlacePhotons { params: p, photons: &self.records, keys: &self.keys, ranks: &s.ranks, offsets: &s.offsets, counts: &s.counts, words: &self.sorted, powers: &self.sorted_powers };
+            let k = PlacePhotons { params: p, photons: &self.records, keys: &self.keys, ranks: &s.ranks, offsets: &s.offsets, counts: &s.counts, words: &self.sorted };
             rt.dispatch(c, &k)
         } else {
             // Counts left for the next index to add to: cleared (`record_reset`).
@@ -598,13 +595,11 @@ impl<'t> PhotonMap<'t> {
     /// What the global map's gathers at every `stride`-th of the first `count` paths of `fb`
     /// visit and find, from the index as it stands (after `record_index` ran) and the paths as
     /// the eye pass left them: computed natively by the shared index over read-back buffers
-    /// (`photon::in_disc`: the photons a gather counts). Grid or kd index alike.
+    /// (`photon::Disc::test`: the photons a gather counts). Grid or kd index alike.
     pub fn query_stats(&self, pass: u32, fb: &FrameBuffers, count: u32, stride: u32) -> Result<QueryStats> {
-        use kdray_shared::photon::{in_disc, CellVisitor, HashGrid, KdCells, PhotonIndex, SortedPhotons};
+        use kdray_shared::photon::{CellVisitor, Disc, HashGrid, KdCells, PhotonIndex, SortedPhotons};
         struct Count {
-            x: [f32; 3],
-            n: [f32; 3],
-            r2: f32,
+            disc: Disc,
             visited: u64,
             found: u64,
         }
@@ -614,20 +609,20 @@ impl<'t> PhotonMap<'t> {
                     return;
                 }
                 self.visited += 1;
-                self.found += in_disc(w, self.x, self.n, self.r2).0 as u64;
+                self.found += self.disc.test(w).0 as u64;
             }
         }
         let rt = self.t.rt;
         let p = self.index_params(pass, count);
         let (words, offsets) = (rt.read(&self.sorted, self.sorted.len())?, rt.read(&self.sort.offsets, self.sort.offsets.len())?);
-        let sorted = SortedPhotons { words: &words, powers: &[], offsets: &offsets };
+        let sorted = SortedPhotons { words: &words, offsets: &offsets };
         let (rays, paths) = (rt.read(&fb.rays, count as usize)?, rt.read(&fb.paths, count as usize)?);
         let r = p.radius[0];
         let mut s = QueryStats::default();
         let mut run = |index: &dyn Fn(&mut Count)| {
             for k in (0..count as usize).step_by(stride.max(1) as usize) {
                 if paths[k].flags & kdray_shared::PATH_GATHER != 0 {
-                    let mut c = Count { x: rays[k].origin, n: rays[k].dir, r2: r * r, visited: 0, found: 0 };
+                    let mut c = Count { disc: Disc::new(&p, rays[k].origin, rays[k].dir, r), visited: 0, found: 0 };
                     index(&mut c);
                     s.points += 1;
                     s.visited += c.visited;
@@ -638,12 +633,12 @@ impl<'t> PhotonMap<'t> {
         match &self.kd {
             None => {
                 let grid = HashGrid::new(&p);
-                run(&|c| grid.visit(c.x, r, 0, &sorted, c));
+                run(&|c| grid.visit(c.disc.x, r, 0, &sorted, c));
             }
             Some((_, leaves, nodes)) => {
                 let (nodes, leaves) = (rt.read(nodes, nodes.len())?, rt.read(leaves, leaves.len())?);
                 let kd = KdCells { nodes: &nodes, leaves: &leaves, cells: p.cells };
-                run(&|c| kd.visit(c.x, r, 0, &sorted, c));
+                run(&|c| kd.visit(c.disc.x, r, 0, &sorted, c));
             }
         }
         Ok(s)
@@ -702,7 +697,6 @@ impl<'t> PhotonMap<'t> {
             index: self.index_binds(),
             rays: &fb.rays,
             words: &self.sorted,
-            powers: &self.sorted_powers,
             offsets: &self.sort.offsets,
             paths: &fb.paths,
             points: gp.list(level.wrapping_sub(1)),
@@ -777,13 +771,12 @@ impl<'t> PhotonMap<'t> {
         self.t.rt.read(&self.records, n)
     }
 
-    /// The sorted photons and the cell offsets of the last index (tests, diagnostics; cell c's
-    /// photons: `photon::cell_range`).
-    pub fn read_index(&self) -> Result<(Vec<Photon>, Vec<u32>)> {
+    /// The sorted photons' words and the cell offsets of the last index (tests, diagnostics;
+    /// cell c's photons: `photon::cell_range`).
+    pub fn read_index(&self) -> Result<(Vec<PhotonWord>, Vec<u32>)> {
         let offsets = self.t.rt.read(&self.sort.offsets, self.sort.offsets.len())?;
         let n = self.sort.placed()? as usize;
-        let (words, powers) = (self.t.rt.read(&self.sorted, n)?, self.t.rt.read(&self.sorted_powers, n)?);
-        Ok((words.iter().zip(powers).map(|(w, p)| w.photon(p)).collect(), offsets))
+        Ok((self.t.rt.read(&self.sorted, n)?, offsets))
     }
 }
 
