@@ -142,19 +142,24 @@ fn check_index(map: &PhotonMap, tree: &KdTreeData, records: &[Photon], what: &st
     let view = SortedPhotons { words: &sorted, offsets: &offsets };
     let p = map.index_params(pass, 0);
     let frame = WordFrame::new(&p);
-    // The words of the records; a word's positions (several records may share a word).
-    let mut of_word: std::collections::HashMap<PhotonWord, Vec<[f32; 3]>> = Default::default();
+    // The words of the records; a word's maps (several records may share a word).
+    let mut of_word: std::collections::HashMap<PhotonWord, Vec<u32>> = Default::default();
     for r in records {
         let w = PhotonWord::of(r, &frame);
         let q = frame.position(w.word);
+        let field = [w.word.x & 0x7f_ffff, w.word.y & 0x7f_ffff, w.word.z & 0x7f_ffff];
         for a in 0..3 {
-            // Within half a step of where the photon landed, plus the rounding of the frame's
-            // origin (up to half a step more) and of the decoding.
-            let round = 1.2e-7 * (p.bounds_min[a].abs() + r.position[a].abs());
-            assert!((q[a] - r.position[a]).abs() <= frame.step[a] + round, "{what}: word at {q:?} for a photon at {:?}", r.position);
+            // Within half a step of where the photon landed (a step at the box's far end, where
+            // the coordinate is clamped), plus the rounding of the frame's origin and of the
+            // decoding.
+            let step = frame.step[a] as f64;
+            let origin_error = (frame.origin[a] as f64 - (p.bounds_min[a] as f64 - 8_388_608.0 * step)).abs();
+            let half_steps = if field[a] == 0x7f_ffff { 1.0 } else { 0.5 };
+            let tolerance = half_steps * step + origin_error + (q[a].abs() as f64) * f32::EPSILON as f64;
+            assert!(((q[a] - r.position[a]) as f64).abs() <= tolerance, "{what}: word at {q:?} for a photon at {:?}", r.position);
         }
         assert_eq!((w.normal_bits(), w.power()), (r.packed & 0xffff, r.power()), "{what}: a word's normal or power is not its photon's");
-        of_word.entry(w).or_default().push(r.position);
+        of_word.entry(w).or_default().push(if p.maps > 1 && r.is_caustic() { 1 } else { 0 });
     }
     // The word that pads a gather step counts nowhere, not even at its own coordinates.
     for n in [[0.0, 0.0, -1.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, -1.0, 0.0]] {
@@ -182,8 +187,8 @@ fn check_index(map: &PhotonMap, tree: &KdTreeData, records: &[Photon], what: &st
         let (a, b) = cell_range(&p, &offsets, c);
         let m = c / p.cells;
         for w in &sorted[a as usize..b as usize] {
-            let at = &of_word[w];
-            assert!(at.iter().any(|&x| index(x, m) == c), "{what}: a photon in the wrong cell");
+            assert!(of_word[w].contains(&m), "{what}: a photon in the wrong map");
+            assert_eq!(index(w.position(&frame), m), c, "{what}: a photon in the wrong cell");
             placed.push((*w, m));
         }
     }
@@ -239,6 +244,34 @@ fn check_index(map: &PhotonMap, tree: &KdTreeData, records: &[Photon], what: &st
         nonempty += (count > 0) as usize;
     }
     assert!(nonempty > 300, "{what}: only {nonempty} gathers found photons");
+}
+
+/// The photon words' frame (`WordFrame`): steps of a power of two, fewer than 2^23 of them
+/// across the box and at most twice the fewest, exact reciprocals, whatever the extent — a
+/// power of two (where a division would round to either side), tiny, huge, or none.
+#[test]
+fn photon_word_frames_are_powers_of_two_within_a_factor_two() {
+    for extent in [1.0f32, 2.0, 1024.0, 0.75, 3.0, 550.0, 1e-3, 1e-30, 3e30, 0.999_999_94, 0.0] {
+        for min in [0.0f32, -1.0, 1.5e5] {
+            let p = kdray_shared::IndexParams { bounds_min: [min; 3], bounds_max: [min + extent; 3], ..Default::default() };
+            let f = WordFrame::new(&p);
+            let (step, e) = (f.step[0] as f64, (p.bounds_max[0] - p.bounds_min[0]) as f64);
+            if e == 0.0 {
+                assert_eq!((f.step[0], f.inv[0]), (0.0, 0.0));
+                continue;
+            }
+            assert_eq!(f.step[0].to_bits() & 0x7f_ffff, 0, "extent {e}: step {step} is not a power of two");
+            assert_eq!(f.step[0] * f.inv[0], 1.0, "extent {e}: step {step}, inverse {}", f.inv[0]);
+            assert!(e / step < 8_388_608.0 && e / step >= 4_194_304.0, "extent {e}: {} steps", e / step);
+            // Both ends of the box decode to within a step and the origin's rounding.
+            for x in [p.bounds_min[0], p.bounds_max[0]] {
+                let q = f.encode([x; 3]);
+                let w = glam::UVec4::new(q[0], q[1], q[2], 0);
+                let err = (f.position(w)[0] as f64 - x as f64).abs();
+                assert!(err <= step + (f.origin[0] as f64).abs() * 1.2e-7, "extent {e}, min {min}: {x} decodes {err} away");
+            }
+        }
+    }
 }
 
 #[test]

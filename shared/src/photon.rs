@@ -167,8 +167,8 @@ impl Photon {
     }
 }
 
-/// Bits of a photon word's coordinates: each axis of the scene box in at most 2^23 − 1 steps
-/// of a power of two, within twice as fine as `f32` at the box's far corner.
+/// Bits of a photon word's coordinates: each axis of the scene box in fewer than 2^23 steps of
+/// a power of two, at most twice as coarse as `f32`'s spacing at the box's far corner.
 pub const WORD_BITS: u32 = 23;
 /// `PhotonWord::word.z`'s bit that marks a word padding a gather step (`is_padding`), not a
 /// photon.
@@ -181,8 +181,9 @@ const TWO_23: f32 = 8_388_608.0;
 /// 2^23 + `m` for `m` < 2^23, exactly, by setting the bits of `m` under the exponent of 2^23: a
 /// bitwise or instead of an integer-to-float conversion, which GPUs run at a fraction of the
 /// rate of float arithmetic (the gather converts eight fields of every photon it tests). The
-/// bias cancels in a multiply-add by a power of two s: `biased(m) · s` is exact, so
-/// `fma(biased(m), s, c)` is the same fused or not (Vulkan lets a driver split an `fma`).
+/// bias cancels in a multiply-add by a power of two s in [2^-126, 2^103]: `biased(m) · s` is
+/// exact, so `fma(biased(m), s, c)` is the same fused or not (Vulkan lets a driver split an
+/// `fma`).
 #[inline(always)]
 fn biased(m: u32) -> f32 {
     f32::from_bits(m | 0x4b00_0000)
@@ -222,23 +223,24 @@ impl WordFrame {
     /// The frame of the scene box of `p`.
     #[inline(always)]
     pub fn new(p: &IndexParams) -> WordFrame {
-        let top = ((1u32 << WORD_BITS) - 1) as f32;
         let e = sub3(p.bounds_max, p.bounds_min);
-        // The least power of two at least extent / top (2^-126 for subnormal quotients).
-        let step = |x: f32| {
-            let b = (x / top).to_bits();
-            if !(x > 0.0) || b >= 0x7f80_0000 {
-                0.0
-            } else if b & 0x7f_ffff == 0 {
-                f32::from_bits(b)
+        // Bits only (a driver's division may be off by ulps, and then the host would decode
+        // other positions than the GPU placed): for an extent in [2^k, 2^(k+1)), the step
+        // 2^(k − 22), so the extent is below 2^23 steps; kept within [2^-126, 2^103] (so
+        // `origin` stays finite). Its reciprocal, exactly, by the exponent alone.
+        let bits = |x: f32| -> u32 {
+            if x > 0.0 && x.to_bits() < 0x7f80_0000 {
+                ((x.to_bits() & 0x7f80_0000) as i32 - (22 << 23)).clamp(1 << 23, (103 + 127) << 23) as u32
             } else {
-                f32::from_bits(((b & 0x7f80_0000) + 0x80_0000).max(0x80_0000))
+                0
             }
         };
-        let step = [step(e[0]), step(e[1]), step(e[2])];
-        let inv = |s: f32| if s > 0.0 { 1.0 / s } else { 0.0 };
+        let b = [bits(e[0]), bits(e[1]), bits(e[2])];
+        let step = [f32::from_bits(b[0]), f32::from_bits(b[1]), f32::from_bits(b[2])];
+        let inv_of = |b: u32| if b == 0 { 0.0 } else { f32::from_bits(0x7f00_0000 - b) };
+        let inv = [inv_of(b[0]), inv_of(b[1]), inv_of(b[2])];
         let o = |a: usize| p.bounds_min[a] - TWO_23 * step[a];
-        WordFrame { min: p.bounds_min, step, inv: [inv(step[0]), inv(step[1]), inv(step[2])], origin: [o(0), o(1), o(2)] }
+        WordFrame { min: p.bounds_min, step, inv, origin: [o(0), o(1), o(2)] }
     }
     /// The nearest coordinates of a point (clamped to the box).
     #[inline(always)]
@@ -296,7 +298,9 @@ fn word_normal(w: UVec4) -> [f32; 3] {
     let y = fma(biased(w.y >> 24), 2.0, -2.0 * TWO_23) - 255.0;
     let z = 255.0 - x.abs() - y.abs();
     let t = (-z).max(0.0);
-    [x + if x >= 0.0 { -t } else { t }, y + if y >= 0.0 { -t } else { t }, z]
+    // x ∓ t by x's sign (x is odd, never 0): the sign bit moved onto t instead of a select.
+    let signed = |t: f32, x: f32| f32::from_bits(t.to_bits() | (x.to_bits() & 0x8000_0000));
+    [x - signed(t, x), y - signed(t, y), z]
 }
 
 /// The index's photons in cell order: cell c's are `offsets[s]..offsets[s + 1]` of `words`,
@@ -830,9 +834,9 @@ fn map_of(p: &IndexParams, ph: &Photon) -> u32 {
     }
 }
 
-/// The cell of photon slot `i` (`NO_CELL` past the stored photons), and the photon's place
-/// among its cell's (`sort::count_rank`, fused: one pass reads the photons once; its
-/// `sort::start` too).
+/// The cell of photon slot `i` (that of its word's position, `PhotonWord`; `NO_CELL` past the
+/// stored photons), and the photon's place among its cell's (`sort::count_rank`, fused: one
+/// pass reads the photons once; its `sort::start` too).
 #[inline(always)]
 pub fn keys<I: PhotonIndex, K: Store<u32> + ?Sized, C: AtomicStore + ?Sized, S: AtomicStore + Store<u32> + ?Sized, R: Store<u32> + ?Sized>(
     i: u32,
@@ -850,8 +854,10 @@ pub fn keys<I: PhotonIndex, K: Store<u32> + ?Sized, C: AtomicStore + ?Sized, S: 
     if i < p.count {
         let stored = counter[0].min(p.count);
         let key = if i < stored {
+            // The cell of the photon's word (`place`), where a gather decodes it.
             let ph = &photons[i as usize];
-            index.cell(ph.position, map_of(p, ph))
+            let frame = WordFrame::new(p);
+            index.cell(frame.position(PhotonWord::of(ph, &frame).word), map_of(p, ph))
         } else {
             NO_CELL
         };
@@ -972,14 +978,17 @@ impl CellVisitor for Sum {
         } else {
             1.0
         };
-        let k = if counts { k } else { 0.0 };
         // The power (RGB9E5, `decode_rgb9e5`): each mantissa m by `biased`, m · 2^(e − 24) in
-        // one multiply-add by a power of two (exact).
+        // one multiply-add by a power of two (exact), times the filter's weight k (0 outside
+        // the disc). Keep the multiplication by k between that multiply-add and the sum's add:
+        // with k folded into the power of two instead, lavapipe summed differently in two
+        // builds of the kernel (an add moved into the multiply-add, where −2^23 · 2^(e − 24)
+        // swamps the sum; docs/gpu-runs/2026-12-04-photon-words-h200.md).
         let v = w.w;
         let s = exp2i((v >> 27) as i32 - 24);
         let c = -TWO_23 * s;
         let rgb = [fma(biased(v & 511), s, c), fma(biased((v >> 9) & 511), s, c), fma(biased((v >> 18) & 511), s, c)];
-        self.sum = add3(self.sum, scale3(rgb, k));
+        self.sum = add3(self.sum, scale3(rgb, if counts { k } else { 0.0 }));
         self.found += counts as u32;
     }
 }
