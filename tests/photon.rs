@@ -224,7 +224,8 @@ fn check_index(map: &PhotonMap, tree: &KdTreeData, records: &[Photon], what: &st
         let (e, found) = (est.irradiance, est.found);
         let (mut want, mut count) = ([0.0f64; 3], 0);
         for (q, _) in placed.iter().filter(|(_, qm)| *qm == m) {
-            let d = Vec3::from(q.position(&frame)) - Vec3::from(x);
+            // A word's offset from x as a gather decodes it (`WordFrame::offset`).
+            let d = Vec3::from(frame.offset(q.word, frame.base(x)));
             if d.length_squared() > r * r {
                 continue;
             }

@@ -252,8 +252,21 @@ impl WordFrame {
     /// The position of word `w`.
     #[inline(always)]
     pub fn position(&self, w: UVec4) -> [f32; 3] {
+        self.offset(w, self.origin)
+    }
+    /// `origin − x`: what the words' offsets from a point `x` are decoded against (`offset`).
+    #[inline(always)]
+    pub fn base(&self, x: [f32; 3]) -> [f32; 3] {
+        sub3(self.origin, x)
+    }
+    /// Word `w`'s position less a point x, given `base(x)`: `fma(biased(q), step, origin − x)`
+    /// per axis, the gather's distances (`Disc::test`). One rounding, fused or not (`biased`);
+    /// and a driver that moves a subtraction after a multiply-add into it (Mesa's inexact
+    /// rules may) finds none to move.
+    #[inline(always)]
+    pub fn offset(&self, w: UVec4, base: [f32; 3]) -> [f32; 3] {
         const Q: u32 = (1 << WORD_BITS) - 1;
-        let c = |q: u32, a: usize| fma(biased(q & Q), self.step[a], self.origin[a]);
+        let c = |q: u32, a: usize| fma(biased(q & Q), self.step[a], base[a]);
         [c(w.x, 0), c(w.y, 1), c(w.z, 2)]
     }
 }
@@ -918,7 +931,7 @@ pub fn place<C: Store<u32> + ?Sized, W: Store<PhotonWord> + ?Sized>(
 // Gather
 
 /// A gather's disc: a point `x` with unit normal `n` (on the viewing side) and radius² `r2`,
-/// and the frame of the photon words it tests (`WordFrame`).
+/// and the frame of the photon words it tests (`WordFrame`) with its `base` at `x`.
 #[derive(Copy, Clone, Debug)]
 pub struct Disc {
     /// The words' frame.
@@ -929,13 +942,16 @@ pub struct Disc {
     pub n: [f32; 3],
     /// The radius, squared.
     pub r2: f32,
+    /// `frame.base(x)`.
+    pub base: [f32; 3],
 }
 
 impl Disc {
     /// The disc of radius `r` at `x` (normal `n`) over the photon words of an index of `p`.
     #[inline(always)]
     pub fn new(p: &IndexParams, x: [f32; 3], n: [f32; 3], r: f32) -> Disc {
-        Disc { frame: WordFrame::new(p), x, n, r2: r * r }
+        let frame = WordFrame::new(p);
+        Disc { frame, x, n, r2: r * r, base: frame.base(x) }
     }
 
     /// Whether the photon of word `w` counts: within the radius, its surface's normal within 60°
@@ -943,7 +959,7 @@ impl Disc {
     /// Also its distance² (the filters' argument).
     #[inline(always)]
     pub fn test(&self, w: UVec4) -> (bool, f32) {
-        let d = sub3(self.frame.position(w), self.x);
+        let d = self.frame.offset(w, self.base);
         let d2 = dot3(d, d);
         // cos > 0.5 for the photon's normal m, not normalised (`word_normal`): c = m·n > 0 and
         // 4c² > |m|² (no square root or division: this test runs for every photon visited). No
