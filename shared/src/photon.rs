@@ -306,9 +306,10 @@ impl PhotonWord {
 /// vector's length.
 #[inline(always)]
 fn word_normal(w: UVec4) -> [f32; 3] {
-    // 2b − 255 for byte b: 2 · biased(b) − 2^24 is exact, fused or not.
-    let x = fma(biased(w.x >> 24), 2.0, -2.0 * TWO_23) - 255.0;
-    let y = fma(biased(w.y >> 24), 2.0, -2.0 * TWO_23) - 255.0;
+    // 2b − 255 for byte b: biased(2b) − (2^23 + 255), one exact subtraction (no multiply-add
+    // for a driver to fuse, split, or move the subtraction into).
+    let x = biased((w.x >> 23) & 0x1fe) - (TWO_23 + 255.0);
+    let y = biased((w.y >> 23) & 0x1fe) - (TWO_23 + 255.0);
     let z = 255.0 - x.abs() - y.abs();
     let t = (-z).max(0.0);
     // x ∓ t by x's sign (x is odd, never 0): the sign bit moved onto t instead of a select.
