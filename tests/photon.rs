@@ -147,14 +147,14 @@ fn check_index(map: &PhotonMap, tree: &KdTreeData, records: &[Photon], what: &st
     for r in records {
         let w = PhotonWord::of(r, &frame);
         let q = frame.position(w.word);
-        let field = [w.word.x & 0x7f_ffff, w.word.y & 0x7f_ffff, w.word.z & 0x7f_ffff];
+        let field = frame.encode(r.position);
         for a in 0..3 {
             // Within half a step of where the photon landed (a step at the box's far end, where
             // the coordinate is clamped), plus the rounding of the frame's origin and of the
             // decoding.
             let step = frame.step[a] as f64;
             let origin_error = (frame.origin[a] as f64 - (p.bounds_min[a] as f64 - 8_388_608.0 * step)).abs();
-            let half_steps = if field[a] == 0x7f_ffff { 1.0 } else { 0.5 };
+            let half_steps = if field[a] == (1 << kdray_shared::photon::WORD_BITS) - 1 { 1.0 } else { 0.5 };
             let tolerance = half_steps * step + origin_error + (q[a].abs() as f64) * f32::EPSILON as f64;
             assert!(((q[a] - r.position[a]) as f64).abs() <= tolerance, "{what}: word at {q:?} for a photon at {:?}", r.position);
         }
