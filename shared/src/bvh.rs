@@ -239,15 +239,18 @@ impl SlotBits {
 fn intersect_children(node: &BvhNode, r: &BoxRay, t_min: f32, t_max: f32) -> u32 {
     let o = node.origin();
     let st = node.steps();
-    let adj_inv = [st[0] * r.inv[0], st[1] * r.inv[1], st[2] * r.inv[2]];
     let rel = [o[0] - r.origin[0], o[1] - r.origin[1], o[2] - r.origin[2]];
-    let adj_o = [rel[0] * r.inv[0], rel[1] * r.inv[1], rel[2] * r.inv[2]];
-    // Finite steps and offsets in ray units, and normal steps: `r.normal_steps` (steps are at
-    // least 2^-100, so |1/d| ≥ 2^-26 keeps every step normal; a subnormal one would round
-    // absolutely, and GPUs flush it), checked once per ray.
-    let fast = r.normal_steps && adj_inv[0].is_finite() && adj_inv[1].is_finite() && adj_inv[2].is_finite() && adj_o[0].is_finite() && adj_o[1].is_finite() && adj_o[2].is_finite();
-    if fast {
-        fast_children(node, r, adj_inv, adj_o, rel, st, t_min, t_max)
+    // Per axis, the extent of the node's grid and its offset from the ray's origin in ray units:
+    // it bounds the rounding of the box distances (`fast_children`). No NaN: 255 · step > 0, and
+    // `r.normal_steps` (checked once per ray) gives |1/d| ≥ 2^-26, which keeps every step in
+    // ray units normal (steps are at least 2^-100; a subnormal one would round absolutely, and
+    // GPUs flush it). A finite sum makes every step and offset in ray units finite too.
+    let err = |a: usize| fma(255.0, st[a], rel[a].abs()) * r.inv[a].abs();
+    let e = err(0) + err(1) + err(2);
+    if r.normal_steps && e < f32::INFINITY {
+        let adj_inv = [st[0] * r.inv[0], st[1] * r.inv[1], st[2] * r.inv[2]];
+        let adj_o = [rel[0] * r.inv[0], rel[1] * r.inv[1], rel[2] * r.inv[2]];
+        fast_children(node, r, adj_inv, adj_o, 16.0 * f32::EPSILON * e, t_min, t_max)
     } else {
         exact_children(node, r, t_min, t_max)
     }
@@ -274,14 +277,12 @@ fn exact_children(node: &BvhNode, r: &BoxRay, t_min: f32, t_max: f32) -> u32 {
 
 /// The eight boxes with one multiply-add per plane (Ylitie et al.): the distance to grid plane
 /// q is `q · step/d + (origin − o)/d`. Its rounding error is at most γ(4) · (255 · step +
-/// |origin − o|) / |d| per axis; the test accepts a box whose interval is empty by up to twice
-/// that (`slack`), so no box the exact test accepts is culled. Written out per slot (constant
+/// |origin − o|) / |d| per axis; the test accepts a box whose interval is empty by up to
+/// `slack`, 16ε times the sum of that bound's factor over the axes (more than twice the error
+/// of any axis), so no box the exact test accepts is culled. Written out per slot (constant
 /// byte positions; an empty slot contributes no bits, so it is not skipped).
 #[inline(always)]
-#[allow(clippy::too_many_arguments)]
-fn fast_children(node: &BvhNode, r: &BoxRay, adj_inv: [f32; 3], adj_o: [f32; 3], rel: [f32; 3], st: [f32; 3], t_min: f32, t_max: f32) -> u32 {
-    let err = |a: usize| (255.0 * st[a] + rel[a].abs()) * r.inv[a].abs();
-    let slack = 16.0 * f32::EPSILON * err(0).max(err(1)).max(err(2));
+fn fast_children(node: &BvhNode, r: &BoxRay, adj_inv: [f32; 3], adj_o: [f32; 3], slack: f32, t_min: f32, t_max: f32) -> u32 {
     // Per axis, the words of the near and far planes' bytes (swapped where the ray goes down).
     let pick = |lo: (u32, u32), hi: (u32, u32), neg: u32| if neg != 0 { (hi, lo) } else { (lo, hi) };
     let (nx, fx) = pick((node.lo_x_y.x, node.lo_x_y.y), (node.lo_z_hi_x.z, node.lo_z_hi_x.w), r.neg[0]);
@@ -370,18 +371,21 @@ pub fn traverse<Q: Query, S: Stats>(bvh: &Bvh, ray: &Ray, q: &mut Q, stats: &mut
                 stats.leaf();
             }
         }
-        while tris[1] != 0 {
+        // No return inside this loop: ended by the query's answer (or a corrupt index) here, the
+        // walk ends below.
+        while tris[1] != 0 && q.open() {
             let k = tris[0] + tris[1].trailing_zeros();
             tris[1] &= tris[1] - 1;
-            if k >= n_tris {
-                return;
+            if k < n_tris {
+                // SAFETY: k < n_tris, checked above.
+                let tri = unsafe { bvh.tris.get_unchecked(k as usize) }.triangle();
+                q.test(tri._pad, &tri, &r, ray.t_min, stats);
+            } else {
+                steps = max_steps;
             }
-            // SAFETY: k < n_tris, checked above.
-            let tri = unsafe { bvh.tris.get_unchecked(k as usize) }.triangle();
-            q.test(tri._pad, &tri, &r, ray.t_min, stats);
-            if !q.open() {
-                return;
-            }
+        }
+        if !q.open() || steps >= max_steps {
+            return;
         }
         if nodes[1] <= 0x00ff_ffff {
             if sp == 0 {

