@@ -24,15 +24,13 @@ use crate::ray::Ray;
 pub struct ShearedRay {
     /// The ray's origin.
     pub origin: [f32; 3],
-    /// Axis that becomes x (the one after `kz`).
-    pub kx: usize,
-    /// Axis that becomes y (the one after `kx`).
-    pub ky: usize,
-    /// Axis of the direction's largest component in magnitude, which becomes z.
-    pub kz: usize,
-    /// Direction scaled by `scale` (exact power of two): |dz| in [1, 2).
+    /// Axis of the direction's largest component in magnitude, which becomes z (the axis after
+    /// it becomes x, the next y: `permute`).
+    pub kz: u32,
+    /// Direction component along the axis that becomes x, scaled by `scale` (an exact power of
+    /// two).
     pub dx: f32,
-    /// Direction component along `ky`, scaled by `scale`.
+    /// Direction component along the axis that becomes y, scaled by `scale`.
     pub dy: f32,
     /// Direction component along `kz`, scaled by `scale`: |dz| in [1, 2).
     pub dz: f32,
@@ -52,43 +50,38 @@ impl ShearedRay {
         let ay = d[1].abs();
         let az = d[2].abs();
         let kz = if ax >= ay && ax >= az {
-            0
+            0u32
         } else if ay >= az {
             1
         } else {
             2
         };
-        let kx = if kz == 2 { 0 } else { kz + 1 };
-        let ky = if kx == 2 { 0 } else { kx + 1 };
-        let scale = match pow2_normaliser(pick3(d, kz)) {
+        let scale = match pow2_normaliser(pick3(d, kz as usize)) {
             Some(s) => s,
             None => return None,
         };
-        Some(Self {
-            origin: ray.origin,
-            kx,
-            ky,
-            kz,
-            dx: pick3(d, kx) * scale,
-            dy: pick3(d, ky) * scale,
-            dz: pick3(d, kz) * scale,
-            scale,
-        })
+        let p = permute(d, kz);
+        Some(Self { origin: ray.origin, kz, dx: p[0] * scale, dy: p[1] * scale, dz: p[2] * scale, scale })
     }
 
     /// Vertex relative to the origin, sheared (and multiplied by dz): (x, y, z-unsheared).
     #[inline(always)]
     fn transform(&self, v: [f32; 3]) -> [f32; 3] {
         let a = [v[0] - self.origin[0], v[1] - self.origin[1], v[2] - self.origin[2]];
-        // Coordinates by selects (`math::pick3`), not indices computed at run time: a GPU
-        // compiler may place an array indexed dynamically in local memory.
-        let az = pick3(a, self.kz);
-        [
-            fma(pick3(a, self.kx), self.dz, -(self.dx * az)),
-            fma(pick3(a, self.ky), self.dz, -(self.dy * az)),
-            az,
-        ]
+        let p = permute(a, self.kz);
+        [fma(p[0], self.dz, -(self.dx * p[2])), fma(p[1], self.dz, -(self.dy * p[2])), p[2]]
     }
+}
+
+/// `v`'s coordinates along the axes after `kz`, after that, and `kz` (the rotation that makes
+/// `kz` the last axis), by comparisons and selects rather than indices computed at run time: a
+/// GPU compiler may place an array indexed dynamically in local memory, and two comparisons of
+/// one value hold fewer registers than three indices.
+#[inline(always)]
+fn permute(v: [f32; 3], kz: u32) -> [f32; 3] {
+    let (z0, z1) = (kz == 0, kz == 1);
+    let pick = |a: f32, b: f32, c: f32| if z0 { a } else if z1 { b } else { c };
+    [pick(v[1], v[2], v[0]), pick(v[2], v[0], v[1]), pick(v[0], v[1], v[2])]
 }
 
 /// Distance along the original ray direction and barycentric weights of v1 and v2.
