@@ -11,6 +11,12 @@ fn main() {
     if std::env::var_os("XDG_RUNTIME_DIR").is_none() {
         std::env::set_var("XDG_RUNTIME_DIR", std::env::temp_dir());
     }
+    // Built for FMA (the repository's .cargo/config.toml): one line, not an illegal instruction.
+    #[cfg(all(target_arch = "x86_64", target_feature = "fma"))]
+    if !std::arch::is_x86_feature_detected!("fma") {
+        eprintln!("error: this kdray was built for x86-64 CPUs with FMA and this one has none; rebuild it with RUSTFLAGS=\"-C target-feature=-fma\"");
+        std::process::exit(1);
+    }
     let cli = cli::Cli::parse();
     if let Some(p) = std::env::var_os(kdray::runtime::module::SPIRV_OVERRIDE) {
         eprintln!("note: GPU kernels from {} ({}), not the built-in module", p.to_string_lossy(), kdray::runtime::module::SPIRV_OVERRIDE);
