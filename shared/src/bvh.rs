@@ -22,7 +22,8 @@
 //!   reconstructs it exactly;
 //! * the box test takes one multiply-add per plane and accepts a box whose interval is empty by
 //!   less than a bound on that rounding (`fast_children`); where the bound does not hold (a
-//!   direction parallel to an axis, steps in ray units that overflow or underflow) it is
+//!   direction parallel to an axis or too small to keep steps in ray units normal, a node's
+//!   grid too large in ray units to keep its distances finite) it is
 //!   `aabb`'s slab test of the exactly reconstructed box; so rounding never culls a box that a
 //!   hit triangle lies in;
 //! * a child is culled only when its box starts beyond the best hit so far (or ends before the
@@ -233,21 +234,23 @@ impl SlotBits {
 /// The hit mask of `node`'s children for `r` within [`t_min`, `t_max`]: node slots in bits
 /// 24..32 (slot s at bit `24 + (s ^ oct_inv)`), leaf triangles in bits 0..24 (offsets from the
 /// node's first leaf triangle). The fast form where the node's grid in ray units is normal and
-/// finite (`fast_children`), else the exact slab test of every stored box (`exact_children`: a
-/// direction parallel to an axis, or a step times a reciprocal that overflows or underflows).
+/// far from overflowing (`fast_children`), else the exact slab test of every stored box
+/// (`exact_children`: a direction parallel to an axis or small enough to make steps in ray
+/// units subnormal, or a grid whose extent and offset in ray units come near overflow).
 #[inline(always)]
 fn intersect_children(node: &BvhNode, r: &BoxRay, t_min: f32, t_max: f32) -> u32 {
     let o = node.origin();
     let st = node.steps();
     let rel = [o[0] - r.origin[0], o[1] - r.origin[1], o[2] - r.origin[2]];
     // Per axis, the extent of the node's grid and its offset from the ray's origin in ray units:
-    // it bounds the rounding of the box distances (`fast_children`). No NaN: 255 · step > 0, and
-    // `r.normal_steps` (checked once per ray) gives |1/d| ≥ 2^-26, which keeps every step in
-    // ray units normal (steps are at least 2^-100; a subnormal one would round absolutely, and
-    // GPUs flush it). A finite sum makes every step and offset in ray units finite too.
+    // it bounds the box distances and their rounding (`fast_children`). `r.normal_steps`
+    // (checked once per ray) gives |1/d| ≥ 2^-26, which keeps every step in ray units normal
+    // (steps are at least 2^-100; a subnormal one would round absolutely, and GPUs flush it).
+    // Below a quarter of f32::MAX, the sum keeps every step and offset in ray units, and every
+    // box distance, finite; an infinite or NaN one (a parallel axis) fails the comparison.
     let err = |a: usize| fma(255.0, st[a], rel[a].abs()) * r.inv[a].abs();
     let e = err(0) + err(1) + err(2);
-    if r.normal_steps && e < f32::INFINITY {
+    if r.normal_steps && e < f32::MAX / 4.0 {
         let adj_inv = [st[0] * r.inv[0], st[1] * r.inv[1], st[2] * r.inv[2]];
         let adj_o = [rel[0] * r.inv[0], rel[1] * r.inv[1], rel[2] * r.inv[2]];
         fast_children(node, r, adj_inv, adj_o, 16.0 * f32::EPSILON * e, t_min, t_max)
@@ -382,6 +385,7 @@ pub fn traverse<Q: Query, S: Stats>(bvh: &Bvh, ray: &Ray, q: &mut Q, stats: &mut
                 q.test(tri._pad, &tri, &r, ray.t_min, stats);
             } else {
                 steps = max_steps;
+                tris[1] = 0;
             }
         }
         if !q.open() || steps >= max_steps {

@@ -14,9 +14,9 @@
 #![no_std]
 #![warn(missing_docs)]
 // Fused multiply-add and square root: `core::f32::math` (a nightly feature) in the shader build;
-// on the host the FMA instruction inline where the build targets it (`math::fma`), else `libm`
-// (hardware FMA and SSE square root where the CPU has them, both correctly rounded), so the
-// crate builds on stable Rust everywhere but in the shader build.
+// on the host, multiply-adds are the FMA instruction inline where the build targets it
+// (`math::fma`), else `libm::fmaf`, and square roots `libm::sqrtf` (SSE), all correctly rounded,
+// so the crate builds on stable Rust everywhere but in the shader build.
 #![cfg_attr(target_arch = "spirv", feature(core_float_math))]
 
 pub mod aabb;

@@ -16,7 +16,7 @@
 //!   `a*b - c*d` into an FMA and break the antisymmetry the proof relies on.
 //! * A degenerate (zero-area) triangle gives `det == 0` and never hits; the scene loader also
 //!   drops triangles whose area is exactly 0.
-use crate::math::{diff_of_products, fma, pick3, pow2_normaliser};
+use crate::math::{diff_of_products, fma, pow2_normaliser};
 use crate::ray::Ray;
 
 /// Per-ray constants of the test, computed once per ray.
@@ -56,11 +56,11 @@ impl ShearedRay {
         } else {
             2
         };
-        let scale = match pow2_normaliser(pick3(d, kz as usize)) {
+        let p = permute(d, kz);
+        let scale = match pow2_normaliser(p[2]) {
             Some(s) => s,
             None => return None,
         };
-        let p = permute(d, kz);
         Some(Self { origin: ray.origin, kz, dx: p[0] * scale, dy: p[1] * scale, dz: p[2] * scale, scale })
     }
 
