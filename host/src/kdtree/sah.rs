@@ -298,13 +298,28 @@ impl Ctx<'_> {
             .iter()
             .map(|b| if b.0[k] == p && b.1[k] == p { 1 } else if b.1[k] <= p { 1 } else if b.0[k] >= p { 2 } else { 3 })
             .collect();
-        let mut lw = Work { tris: Vec::new(), bounds: Vec::new(), events: Default::default(), cell: lcell, depth: w.depth + 1, budget: w.budget };
-        let mut rw = Work { tris: Vec::new(), bounds: Vec::new(), events: Default::default(), cell: rcell, depth: w.depth + 1, budget: w.budget };
+        // Each child's triangles, and per axis the events its one-sided triangles keep (one for a
+        // triangle flat along the axis, else two), so every array is allocated once.
+        let (mut nl, mut nr) = (0usize, 0usize);
+        let (mut el, mut er) = ([0usize; 3], [0usize; 3]);
+        for (b, &sd) in w.bounds.iter().zip(&side) {
+            nl += (sd & 1) as usize;
+            nr += (sd >> 1) as usize;
+            if sd != 3 {
+                let e = if sd == 1 { &mut el } else { &mut er };
+                for a in 0..3 {
+                    e[a] += 1 + (b.0[a] != b.1[a]) as usize;
+                }
+            }
+        }
+        let ns = nl + nr - n;
+        let mut lw = Work { tris: Vec::with_capacity(nl), bounds: Vec::with_capacity(nl), events: Default::default(), cell: lcell, depth: w.depth + 1, budget: w.budget };
+        let mut rw = Work { tris: Vec::with_capacity(nr), bounds: Vec::with_capacity(nr), events: Default::default(), cell: rcell, depth: w.depth + 1, budget: w.budget };
         // New local indices; u32::MAX where the triangle is not in that child.
         let mut lidx = vec![u32::MAX; n];
         let mut ridx = vec![u32::MAX; n];
-        let mut lnew: [Vec<Event>; 3] = Default::default();
-        let mut rnew: [Vec<Event>; 3] = Default::default();
+        let mut lnew: [Vec<Event>; 3] = core::array::from_fn(|_| Vec::with_capacity(2 * ns));
+        let mut rnew: [Vec<Event>; 3] = core::array::from_fn(|_| Vec::with_capacity(2 * ns));
         for i in 0..n {
             let g = w.tris[i];
             match side[i] {
@@ -340,8 +355,8 @@ impl Ctx<'_> {
             }
         }
         for a in 0..3 {
-            let mut le = Vec::new();
-            let mut re = Vec::new();
+            let mut le = Vec::with_capacity(el[a]);
+            let mut re = Vec::with_capacity(er[a]);
             for e in &w.events[a] {
                 let i = e.tri as usize;
                 match side[i] {
