@@ -6,6 +6,8 @@
 #
 # --kernels: also the nightly that rust-gpu pins (shader-crate/rust-toolchain.toml) with its
 # components, needed only to rebuild the committed SPIR-V (scripts/kernels.sh).
+# --python: also Python 3 (3.9 or later) with its venv module, for the Python package (python/,
+# scripts/python.sh).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -47,6 +49,10 @@ fi
 if [ -z "${KDRAY_PLOT_FONT:-}" ] && ! ls /usr/share/fonts/truetype/dejavu/DejaVuSans.ttf /usr/share/fonts/TTF/DejaVuSans.ttf /usr/share/fonts/dejavu/DejaVuSans.ttf >/dev/null 2>&1; then
   echo "setup: no DejaVu font found: installing fonts-dejavu-core (benchmark plots)"
   packages+=(fonts-dejavu-core)
+fi
+if [ "${1:-}" = "--python" ] && ! python3 -c 'import sys, venv, ensurepip; sys.exit(sys.version_info < (3, 9))' 2>/dev/null; then
+  echo "setup: no Python 3.9+ with venv found: installing python3 and python3-venv (the Python package)"
+  packages+=(python3 python3-venv)
 fi
 if [ ${#packages[@]} -gt 0 ]; then
   sudo=""

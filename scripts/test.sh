@@ -3,8 +3,10 @@
 # included: with KDRAY_REQUIRE_GPU=1 a test that finds no GPU adapter fails instead of
 # skipping. Also: the shader crate's entry points as plain functions on the host, the library's
 # examples, the doc tests, and a crate outside the workspace that depends on kdray as a user's
-# would (tests/downstream). The kernels are the committed SPIR-V (host/kernels/); tests/kernels.rs
-# checks it still matches its sources. CI also rebuilds it (.ci/run).
+# would (tests/downstream), and the Python package (scripts/python.sh: pip install ./python into
+# a virtual environment, pytest, the example against trimesh). The kernels are the committed
+# SPIR-V (host/kernels/); tests/kernels.rs checks it still matches its sources. CI also rebuilds
+# it (.ci/run).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
@@ -21,3 +23,6 @@ cargo run --release --example render_obj -- scenes/room.obj target/examples-room
 cargo run --release --example render_toml -- scenes/room.toml target/examples-room-toml.png 64 4
 # A user's crate on stable Rust, without the command line's dependencies.
 cargo run --release --locked --manifest-path tests/downstream/Cargo.toml --target-dir target
+# The Python package: pip install ./python into a virtual environment, its pytest suite (on the
+# GPU too: KDRAY_REQUIRE_GPU is set) and its example against trimesh.
+bash scripts/python.sh

@@ -6,6 +6,30 @@ use crate::error::{bail, Result};
 use rayon::prelude::*;
 use std::cell::UnsafeCell;
 
+/// Whether this CPU runs the instructions this build of the native code was compiled for: with
+/// the repository's `.cargo/config.toml`, x86-64 builds target FMA (`kdray_shared::math::fma` is
+/// then the instruction). `Err` names what is missing and how to rebuild; the command line and
+/// the Python module check it first and stop with that line instead of an illegal instruction.
+/// Always `Ok` on builds that target no such feature. CPUID is asked itself:
+/// `is_x86_feature_detected!` answers `true` without asking in a build that targets the feature.
+pub fn check_cpu() -> Result<()> {
+    #[cfg(all(target_arch = "x86_64", target_feature = "fma"))]
+    {
+        use std::arch::x86_64::{__cpuid, _xgetbv};
+        // SAFETY: every x86-64 CPU has CPUID; XGETBV is run only where CPUID says the OS
+        // enabled it (OSXSAVE).
+        let runs_fma = unsafe {
+            let c = __cpuid(1).ecx;
+            let (fma, osxsave, avx) = (c & (1 << 12) != 0, c & (1 << 27) != 0, c & (1 << 28) != 0);
+            fma && avx && osxsave && _xgetbv(0) & 6 == 6
+        };
+        if !runs_fma {
+            bail!(InvalidInput: "this kdray was built for x86-64 CPUs with FMA and this one has none; rebuild it with RUSTFLAGS=\"-C target-feature=-fma\"");
+        }
+    }
+    Ok(())
+}
+
 /// The native runtime over rayon's thread pool.
 pub struct Cpu {
     /// Scene arrays larger than this are split across bindings (`with_split_limit`).

@@ -540,18 +540,23 @@ pub fn load(spec: &str) -> Result<Scene> {
                 _ => bail!(Scene: "'{s}': use soup:N or soup:N:S (N random triangles of size S in the unit cube)"),
             }
         }
-        s if s.ends_with(".obj") => in_file(s, obj::load_obj_scene(Path::new(s)))?,
-        s if s.ends_with(".toml") => in_file(s, file::load_scene_file(Path::new(s)))?,
+        s if has_extension(s, "obj") => in_file(s, obj::load_obj_scene(Path::new(s)))?,
+        s if has_extension(s, "toml") => in_file(s, file::load_scene_file(Path::new(s)))?,
         s => bail!(Scene: "unknown scene '{s}': use cornell, cornell-mirror, cornell-mirrors, cornell-glass, cornell-chair, chairs:K, conference, soup:N[:S], a .obj file or a .toml scene file"),
     };
     in_file(spec, scene.validate().map(|_| scene))
+}
+
+/// Whether the file `spec` names ends in `.ext`, in any case (`X.OBJ` is an OBJ file).
+fn has_extension(spec: &str, ext: &str) -> bool {
+    Path::new(spec).extension().is_some_and(|e| e.eq_ignore_ascii_case(ext))
 }
 
 /// A scene file's content errors as `Error::SceneFile` of that file (the generic checks —
 /// colours, finiteness, the camera — report `Error::Scene` with the file's name in front).
 fn in_file(spec: &str, r: Result<Scene>) -> Result<Scene> {
     match r {
-        Err(crate::Error::Scene(msg)) if spec.ends_with(".obj") || spec.ends_with(".toml") => {
+        Err(crate::Error::Scene(msg)) if has_extension(spec, "obj") || has_extension(spec, "toml") => {
             let message = msg.strip_prefix(&format!("{spec}: ")).unwrap_or(&msg).to_string();
             Err(crate::Error::SceneFile { file: spec.to_string(), line: None, message })
         }
