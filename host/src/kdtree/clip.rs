@@ -3,21 +3,51 @@
 /// Box as (min, max) corners.
 pub type Bounds = ([f32; 3], [f32; 3]);
 
+/// A clipped polygon's vertices: a triangle cut by the six planes of a box has at most nine
+/// (one more per plane); rounding can make a nearly flat one cross a plane more often, so
+/// there is room for more, and `push` reports a polygon that would not fit.
+struct Poly {
+    v: [[f64; 3]; Poly::CAP],
+    n: usize,
+}
+
+impl Poly {
+    const CAP: usize = 12;
+
+    fn push(&mut self, p: [f64; 3]) -> bool {
+        if self.n == Poly::CAP {
+            return false;
+        }
+        self.v[self.n] = p;
+        self.n += 1;
+        true
+    }
+}
+
 /// The bounds of the part of triangle `v` inside box `b`, or `None` if (numerically) empty.
 /// The result always lies inside `b`.
 pub fn clipped_bounds(v: [[f32; 3]; 3], b: Bounds) -> Option<Bounds> {
-    let mut poly: Vec<[f64; 3]> = v.iter().map(|p| [p[0] as f64, p[1] as f64, p[2] as f64]).collect();
-    let mut next = Vec::with_capacity(9);
+    // Sutherland-Hodgman, plane by plane, between two polygons on the stack (a quarter of a
+    // build's time was clipping, much of it allocating).
+    let mut poly = Poly { v: [[0.0; 3]; Poly::CAP], n: 3 };
+    for (k, p) in v.iter().enumerate() {
+        poly.v[k] = [p[0] as f64, p[1] as f64, p[2] as f64];
+    }
+    let mut next = Poly { v: [[0.0; 3]; Poly::CAP], n: 0 };
     for axis in 0..3 {
         for (bound, keep_above) in [(b.0[axis] as f64, true), (b.1[axis] as f64, false)] {
-            next.clear();
             let inside = |p: &[f64; 3]| if keep_above { p[axis] >= bound } else { p[axis] <= bound };
-            for i in 0..poly.len() {
-                let cur = poly[i];
-                let nxt = poly[(i + 1) % poly.len()];
+            // Most planes of a cell miss the triangle: the polygon stays as it is.
+            if poly.v[..poly.n].iter().all(inside) {
+                continue;
+            }
+            next.n = 0;
+            for i in 0..poly.n {
+                let cur = poly.v[i];
+                let nxt = poly.v[if i + 1 == poly.n { 0 } else { i + 1 }];
                 let (ci, ni) = (inside(&cur), inside(&nxt));
-                if ci {
-                    next.push(cur);
+                if ci && !next.push(cur) {
+                    return Some(overlap(tri_bounds(v), b));
                 }
                 if ci != ni {
                     let t = (bound - cur[axis]) / (nxt[axis] - cur[axis]);
@@ -26,18 +56,21 @@ pub fn clipped_bounds(v: [[f32; 3]; 3], b: Bounds) -> Option<Bounds> {
                         p[k] = cur[k] + t * (nxt[k] - cur[k]);
                     }
                     p[axis] = bound;
-                    next.push(p);
+                    if !next.push(p) {
+                        return Some(overlap(tri_bounds(v), b));
+                    }
                 }
             }
             std::mem::swap(&mut poly, &mut next);
-            if poly.is_empty() {
+            if poly.n == 0 {
                 return None;
             }
         }
     }
+    let poly = &poly.v[..poly.n];
     let mut lo = [f32::INFINITY; 3];
     let mut hi = [f32::NEG_INFINITY; 3];
-    for p in &poly {
+    for p in poly {
         for k in 0..3 {
             lo[k] = lo[k].min(round_down(p[k]));
             hi[k] = hi[k].max(round_up(p[k]));
@@ -51,6 +84,17 @@ pub fn clipped_bounds(v: [[f32; 3]; 3], b: Bounds) -> Option<Bounds> {
         }
     }
     Some((lo, hi))
+}
+
+/// The part of box `a` inside box `b` (conservative bounds of a triangle whose clipping
+/// rounding made degenerate; `a` must overlap `b`).
+fn overlap(a: Bounds, b: Bounds) -> Bounds {
+    let mut o = a;
+    for k in 0..3 {
+        o.0[k] = a.0[k].max(b.0[k]);
+        o.1[k] = a.1[k].min(b.1[k]).max(o.0[k]);
+    }
+    o
 }
 
 fn round_down(x: f64) -> f32 {

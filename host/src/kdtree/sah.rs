@@ -122,13 +122,17 @@ fn sort_events(e: &mut [Event]) {
 }
 
 fn push_events(ev: &mut [Vec<Event>; 3], b: &Bounds, tri: u32) {
-    for k in 0..3 {
-        if b.0[k] == b.1[k] {
-            ev[k].push(Event { pos: b.0[k], kind: PLANAR, tri });
-        } else {
-            ev[k].push(Event { pos: b.0[k], kind: START, tri });
-            ev[k].push(Event { pos: b.1[k], kind: END, tri });
-        }
+    for (k, e) in ev.iter_mut().enumerate() {
+        push_axis_events(e, b, k, tri);
+    }
+}
+
+fn push_axis_events(ev: &mut Vec<Event>, b: &Bounds, k: usize, tri: u32) {
+    if b.0[k] == b.1[k] {
+        ev.push(Event { pos: b.0[k], kind: PLANAR, tri });
+    } else {
+        ev.push(Event { pos: b.0[k], kind: START, tri });
+        ev.push(Event { pos: b.1[k], kind: END, tri });
     }
 }
 
@@ -145,9 +149,35 @@ struct Work {
     budget: f64,
 }
 
-enum Built {
-    Leaf(Vec<u32>),
-    Interior { axis: u32, split: f32, children: Box<[Built; 2]> },
+/// A subtree as the traversals read it, built in place: its nodes (its root first, each
+/// interior node's two children adjacent, in the order of a depth-first walk that places both
+/// children of a node before either's subtree) and the primitive list its leaves index. Values
+/// past the node format's widths wrap here; `build_within` checks the sizes before use.
+#[derive(Default)]
+struct Flat {
+    nodes: Vec<KdNode>,
+    prims: Vec<u32>,
+    largest_leaf: usize,
+}
+
+impl Flat {
+    /// Appends subtree `sub`, its root into slot `at` (allocated, empty) and its other nodes
+    /// at the end, renumbering child indices and leaf offsets.
+    fn append(&mut self, sub: Flat, at: usize) {
+        let base = self.nodes.len() as u32 - 1;
+        let prim_base = self.prims.len() as u32;
+        let moved = |n: KdNode| {
+            if n.is_leaf() {
+                KdNode { a: n.a.wrapping_add(prim_base), b: n.b }
+            } else {
+                KdNode { a: n.a, b: n.b.wrapping_add(base << 2) }
+            }
+        };
+        self.nodes[at] = moved(sub.nodes[0]);
+        self.nodes.extend(sub.nodes[1..].iter().map(|&n| moved(n)));
+        self.prims.extend_from_slice(&sub.prims);
+        self.largest_leaf = self.largest_leaf.max(sub.largest_leaf);
+    }
 }
 
 fn area(b: &Bounds) -> f64 {
@@ -257,14 +287,27 @@ impl Ctx<'_> {
         best
     }
 
-    fn build(&self, w: Work) -> Built {
+    /// The subtree of `w` on its own (its root at index 0).
+    fn subtree(&self, w: Work) -> Flat {
+        let mut out = Flat { nodes: vec![KdNode::default()], ..Default::default() };
+        self.build(w, &mut out, 0);
+        out
+    }
+
+    /// Builds the subtree of `w` into `out`, its root into the (allocated) slot `idx`.
+    fn build(&self, w: Work, out: &mut Flat, idx: usize) {
         let n = w.tris.len();
+        let leaf = |out: &mut Flat, tris: &[u32]| {
+            out.nodes[idx] = KdNode::leaf(out.prims.len() as u32, tris.len() as u32);
+            out.prims.extend_from_slice(tris);
+            out.largest_leaf = out.largest_leaf.max(tris.len());
+        };
         if n <= self.opt.leaf_size || w.depth >= self.depth_limit {
-            return Built::Leaf(w.tris);
+            return leaf(out, &w.tris);
         }
         let split = match self.best_split(&w) {
             Some(s) if s.cost < self.opt.k_i as f64 * n as f64 => s,
-            _ => return Built::Leaf(w.tris),
+            _ => return leaf(out, &w.tris),
         };
         let (mut left, mut right) = self.split(w, split);
         // The children share the budget in proportion to their triangles: each keeps at least
@@ -274,12 +317,17 @@ impl Ctx<'_> {
             let n = c.tris.len() as f64;
             c.budget = if n == 0.0 { 0.0 } else { (c.budget * (n / whole)).max(n) };
         }
-        let (l, r) = if n > self.opt.parallel_threshold {
-            rayon::join(|| self.build(left), || self.build(right))
+        let c = out.nodes.len();
+        out.nodes.extend([KdNode::default(); 2]);
+        out.nodes[idx] = KdNode::interior(split.axis as u32, split.pos, c as u32);
+        if n > self.opt.parallel_threshold {
+            let (l, r) = rayon::join(|| self.subtree(left), || self.subtree(right));
+            out.append(l, c);
+            out.append(r, c + 1);
         } else {
-            (self.build(left), self.build(right))
-        };
-        Built::Interior { axis: split.axis as u32, split: split.pos, children: Box::new([l, r]) }
+            self.build(left, out, c);
+            self.build(right, out, c + 1);
+        }
     }
 
     /// Distributes the triangles: one-sided ones keep their (already sorted) events, straddlers
@@ -313,30 +361,43 @@ impl Ctx<'_> {
             }
         }
         let ns = nl + nr - n;
-        let mut lw = Work { tris: Vec::with_capacity(nl), bounds: Vec::with_capacity(nl), events: Default::default(), cell: lcell, depth: w.depth + 1, budget: w.budget };
-        let mut rw = Work { tris: Vec::with_capacity(nr), bounds: Vec::with_capacity(nr), events: Default::default(), cell: rcell, depth: w.depth + 1, budget: w.budget };
-        // New local indices; u32::MAX where the triangle is not in that child.
-        let mut lidx = vec![u32::MAX; n];
-        let mut ridx = vec![u32::MAX; n];
-        let mut lnew: [Vec<Event>; 3] = core::array::from_fn(|_| Vec::with_capacity(2 * ns));
-        let mut rnew: [Vec<Event>; 3] = core::array::from_fn(|_| Vec::with_capacity(2 * ns));
+        // A child that `build` will make a leaf without looking at it needs only its triangles:
+        // no bounds, no clipping, no events (most leaves; the same tree).
+        let becomes_leaf = |count: usize| count <= self.opt.leaf_size || w.depth + 1 >= self.depth_limit;
+        let (l_leaf, r_leaf) = (becomes_leaf(nl), becomes_leaf(nr));
+        let mut lw = Work { tris: Vec::with_capacity(nl), bounds: Vec::with_capacity(if l_leaf { 0 } else { nl }), events: Default::default(), cell: lcell, depth: w.depth + 1, budget: w.budget };
+        let mut rw = Work { tris: Vec::with_capacity(nr), bounds: Vec::with_capacity(if r_leaf { 0 } else { nr }), events: Default::default(), cell: rcell, depth: w.depth + 1, budget: w.budget };
+        // A one-sided triangle's index in its child; the straddlers are clipped into both and
+        // listed (their indices in each child) for their new events.
+        let mut local = vec![0u32; n];
+        let mut straddlers: Vec<[u32; 2]> = Vec::with_capacity(ns);
         for i in 0..n {
             let g = w.tris[i];
             match side[i] {
                 1 => {
-                    lidx[i] = lw.tris.len() as u32;
+                    local[i] = lw.tris.len() as u32;
                     lw.tris.push(g);
-                    lw.bounds.push(w.bounds[i]);
+                    if !l_leaf {
+                        lw.bounds.push(w.bounds[i]);
+                    }
                 }
                 2 => {
-                    ridx[i] = rw.tris.len() as u32;
+                    local[i] = rw.tris.len() as u32;
                     rw.tris.push(g);
-                    rw.bounds.push(w.bounds[i]);
+                    if !r_leaf {
+                        rw.bounds.push(w.bounds[i]);
+                    }
                 }
                 _ => {
                     let t = &self.tris[g as usize];
                     let v = [t.v0, t.v1, t.v2];
-                    for (cell, cw, new) in [(lcell, &mut lw, &mut lnew), (rcell, &mut rw, &mut rnew)] {
+                    let mut ids = [0u32; 2];
+                    for (c, (cell, cw, is_leaf)) in [(lcell, &mut lw, l_leaf), (rcell, &mut rw, r_leaf)].into_iter().enumerate() {
+                        ids[c] = cw.tris.len() as u32;
+                        cw.tris.push(g);
+                        if is_leaf {
+                            continue;
+                        }
                         let clipped = clipped_bounds(v, cell).unwrap_or_else(|| {
                             // Numerically empty: fall back to the box overlap (conservative).
                             let mut b = w.bounds[i];
@@ -346,54 +407,68 @@ impl Ctx<'_> {
                             }
                             b
                         });
-                        let id = cw.tris.len() as u32;
-                        cw.tris.push(g);
                         cw.bounds.push(clipped);
-                        push_events(new, &clipped, id);
                     }
+                    straddlers.push(ids);
                 }
             }
         }
+        // Per axis and child: the one-sided triangles' events in their (sorted) order, then the
+        // straddlers' new events sorted and merged in, in the one array the child keeps.
+        let mut new = Vec::with_capacity(2 * ns);
         for a in 0..3 {
-            let mut le = Vec::with_capacity(el[a]);
-            let mut re = Vec::with_capacity(er[a]);
+            let mut le = Vec::with_capacity(if l_leaf { 0 } else { el[a] + 2 * ns });
+            let mut re = Vec::with_capacity(if r_leaf { 0 } else { er[a] + 2 * ns });
             for e in &w.events[a] {
                 let i = e.tri as usize;
                 match side[i] {
-                    1 => le.push(Event { tri: lidx[i], ..*e }),
-                    2 => re.push(Event { tri: ridx[i], ..*e }),
+                    1 if !l_leaf => le.push(Event { tri: local[i], ..*e }),
+                    2 if !r_leaf => re.push(Event { tri: local[i], ..*e }),
                     _ => {}
                 }
             }
-            sort_events(&mut lnew[a]);
-            sort_events(&mut rnew[a]);
-            lw.events[a] = merge(le, std::mem::take(&mut lnew[a]));
-            rw.events[a] = merge(re, std::mem::take(&mut rnew[a]));
+            for (c, (cw, events, is_leaf)) in [(&lw, &mut le, l_leaf), (&rw, &mut re, r_leaf)].into_iter().enumerate() {
+                if is_leaf {
+                    continue;
+                }
+                new.clear();
+                for s in &straddlers {
+                    push_axis_events(&mut new, &cw.bounds[s[c] as usize], a, s[c]);
+                }
+                sort_events(&mut new);
+                merge_into(events, &new);
+            }
+            lw.events[a] = le;
+            rw.events[a] = re;
         }
         (lw, rw)
     }
 }
 
-fn merge(a: Vec<Event>, b: Vec<Event>) -> Vec<Event> {
+/// Merges sorted `b` into sorted `a`, in place (from the back; `a` has the room): on equal keys
+/// `a`'s events come first.
+fn merge_into(a: &mut Vec<Event>, b: &[Event]) {
     if b.is_empty() {
-        return a;
+        return;
     }
-    let mut out = Vec::with_capacity(a.len() + b.len());
-    let (mut i, mut j) = (0, 0);
-    while i < a.len() && j < b.len() {
-        let ka = (a[i].pos, a[i].kind);
-        let kb = (b[j].pos, b[j].kind);
-        if ka.0 < kb.0 || (ka.0 == kb.0 && ka.1 <= kb.1) {
-            out.push(a[i]);
-            i += 1;
+    let (mut i, mut j) = (a.len(), b.len());
+    a.resize(i + j, b[0]);
+    let mut k = i + j;
+    while j > 0 {
+        // Take from `a` only when it sorts strictly after `b`'s next (ties: `b` goes last).
+        let take_a = i > 0 && {
+            let (x, y) = (&a[i - 1], &b[j - 1]);
+            !(x.pos < y.pos || (x.pos == y.pos && x.kind <= y.kind))
+        };
+        k -= 1;
+        if take_a {
+            i -= 1;
+            a[k] = a[i];
         } else {
-            out.push(b[j]);
-            j += 1;
+            j -= 1;
+            a[k] = b[j];
         }
     }
-    out.extend_from_slice(&a[i..]);
-    out.extend_from_slice(&b[j..]);
-    out
 }
 
 /// What the buffers can address: an interior `KdNode` stores its first child's index << 2 and a
@@ -481,20 +556,6 @@ pub fn check_limits(nodes: usize, largest_leaf: usize, prim_refs: usize, triangl
     )
 }
 
-fn count(b: &Built, c: &mut TreeCounts) {
-    c.nodes += 1;
-    match b {
-        Built::Leaf(t) => {
-            c.largest_leaf = c.largest_leaf.max(t.len() as u64);
-            c.prim_refs += t.len() as u64;
-        }
-        Built::Interior { children, .. } => {
-            count(&children[0], c);
-            count(&children[1], c);
-        }
-    }
-}
-
 /// Builds the tree over `tris` (which must be non-empty and finite).
 ///
 /// # Panics
@@ -535,60 +596,41 @@ fn build_within(tris: &[Triangle], opt: &BuildOptions, limits: &Limits) -> Resul
     let extent = (0..3).fold(0.0f32, |m, k| m.max(scene.1[k] - scene.0[k]));
     let ctx = Ctx { tris, opt, depth_limit, min_gap: extent * MIN_GAP };
     let budget = opt.max_duplication.max(1.0) as f64 * n as f64;
-    let root = ctx.build(Work { tris: (0..n as u32).collect(), bounds, events, cell: scene, depth: 0, budget });
-    let mut counts = TreeCounts::default();
-    count(&root, &mut counts);
-    check_counts(&counts, limits)?;
+    let Flat { nodes, prims, largest_leaf } = ctx.subtree(Work { tris: (0..n as u32).collect(), bounds, events, cell: scene, depth: 0, budget });
+    check_counts(&TreeCounts { nodes: nodes.len() as u64, largest_leaf: largest_leaf as u64, prim_refs: prims.len() as u64 }, limits)?;
 
-    let mut nodes = vec![KdNode::default()];
-    let mut prims = Vec::new();
     let mut st = TreeStats { triangles: n, depth_limit, ..Default::default() };
     let root_area = area(&scene).max(f64::MIN_POSITIVE);
-    flatten(&root, 0, &mut nodes, &mut prims, scene, 0, &mut st, opt, root_area);
+    walk_stats(&nodes, 0, scene, 0, &mut st, opt, root_area);
     st.nodes = nodes.len();
     st.avg_leaf_size = prims.len() as f64 / (st.leaves - st.empty_leaves).max(1) as f64;
     st.references = prims.len();
     st.bytes = nodes.len() * std::mem::size_of::<KdNode>() + prims.len() * 4;
     st.build_seconds = start.elapsed().as_secs_f64();
-    debug_assert_eq!((nodes.len() as u64, prims.len() as u64), (counts.nodes, counts.prim_refs));
     Ok(KdTreeData { nodes, prims, bounds: Aabb { min: scene.0, max: scene.1 }, stats: st })
 }
 
 #[allow(clippy::too_many_arguments)]
-fn flatten(
-    b: &Built,
-    idx: usize,
-    nodes: &mut Vec<KdNode>,
-    prims: &mut Vec<u32>,
-    cell: Bounds,
-    depth: u32,
-    st: &mut TreeStats,
-    opt: &BuildOptions,
-    root_area: f64,
-) {
+/// Leaves, depth and SAH cost of the built tree, node by node from `idx` (the cost summed in
+/// the order of a depth-first walk, left before right).
+fn walk_stats(nodes: &[KdNode], idx: usize, cell: Bounds, depth: u32, st: &mut TreeStats, opt: &BuildOptions, root_area: f64) {
     st.max_depth = st.max_depth.max(depth);
     let rel = area(&cell) / root_area;
-    match b {
-        Built::Leaf(t) => {
-            nodes[idx] = KdNode::leaf(prims.len() as u32, t.len() as u32);
-            prims.extend_from_slice(t);
-            st.leaves += 1;
-            st.empty_leaves += t.is_empty() as usize;
-            st.sah_cost += rel * opt.k_i as f64 * t.len() as f64;
-        }
-        Built::Interior { axis, split, children } => {
-            let c = nodes.len();
-            nodes.push(KdNode::default());
-            nodes.push(KdNode::default());
-            nodes[idx] = KdNode::interior(*axis, *split, c as u32);
-            st.sah_cost += rel * opt.k_t as f64;
-            let (mut l, mut r) = (cell, cell);
-            l.1[*axis as usize] = *split;
-            r.0[*axis as usize] = *split;
-            flatten(&children[0], c, nodes, prims, l, depth + 1, st, opt, root_area);
-            flatten(&children[1], c + 1, nodes, prims, r, depth + 1, st, opt, root_area);
-        }
+    let node = nodes[idx];
+    if node.is_leaf() {
+        let count = node.prim_count() as usize;
+        st.leaves += 1;
+        st.empty_leaves += (count == 0) as usize;
+        st.sah_cost += rel * opt.k_i as f64 * count as f64;
+        return;
     }
+    st.sah_cost += rel * opt.k_t as f64;
+    let (axis, split, c) = (node.axis(), node.split(), node.first_child() as usize);
+    let (mut l, mut r) = (cell, cell);
+    l.1[axis] = split;
+    r.0[axis] = split;
+    walk_stats(nodes, c, l, depth + 1, st, opt, root_area);
+    walk_stats(nodes, c + 1, r, depth + 1, st, opt, root_area);
 }
 
 #[cfg(test)]
