@@ -409,6 +409,56 @@ fn bench_all_suites_write_rows_with_speed_and_error() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// `bench horn --peer CMD`: the command runs on the dumped rays, its result lines become rows
+/// (speed, and answers differing from the dump's as "vs reference"), and the table gains the
+/// fastest kdray row over each peer; a failing or silent peer is one error line.
+#[test]
+fn bench_horn_adds_a_peer_run_on_the_same_rays() {
+    let dir = std::env::temp_dir().join(format!("kdray-peer-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    // A peer that answers for every batch it finds, at 2.5 Mrays/s, 99 of 100 as the dump.
+    let peer = dir.join("peer.sh");
+    std::fs::write(&peer, "for f in \"$1\"/*-rays.npy; do b=$(basename \"$f\" -rays.npy); echo \"$b: peer=fake rays=100 Mrays/s=2.5 same-answer=99/100\"; done\necho unrelated line\n").unwrap();
+    let run = |peer_cmd: &str, dump: bool| {
+        let mut c = std::process::Command::new(env!("CARGO_BIN_EXE_kdray"));
+        c.args(["bench", "horn", "--device", "cpu", "--scene", "cornell", "--size", "16", "--reps", "1", "--method", "bvh", "--method", "stack", "--peer", peer_cmd]);
+        c.arg("--out").arg(dir.join("out"));
+        if dump {
+            c.arg("--dump-rays").arg(dir.join("rays"));
+        }
+        c.output().unwrap()
+    };
+    let out = run(&format!("sh {}", peer.display()), true);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let csv = std::fs::read_to_string(dir.join("out/horn-cpu.csv")).unwrap();
+    let peer_rows: Vec<Vec<String>> = csv.lines().filter(|l| l.contains(",peer:fake,")).map(split_csv).collect();
+    assert_eq!(peer_rows.len(), 2, "{csv}");
+    let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    for r in &peer_rows {
+        assert_eq!(r[col("mrays_s_wall")].parse::<f64>().unwrap(), 2.5);
+        assert_eq!(r[col("reference_mismatch_rate")].parse::<f64>().unwrap(), 0.01);
+        assert_eq!(r[col("rays")], "100");
+    }
+    let md = std::fs::read_to_string(dir.join("out/horn-cpu.md")).unwrap();
+    let ratio = md.lines().find(|l| l.starts_with("| fastest kdray ÷ fake |")).unwrap_or_else(|| panic!("{md}"));
+    let fastest: f64 = csv
+        .lines()
+        .filter(|l| l.contains(",cornell,") && l.contains(",primary,") && !l.contains("peer:"))
+        .map(|l| split_csv(l)[col("mrays_s_wall")].parse::<f64>().unwrap())
+        .fold(0.0, f64::max);
+    let shown: f64 = ratio.split('|').nth(2).unwrap().trim().parse().unwrap();
+    assert!((shown - fastest / 2.5).abs() <= 0.005 + 1e-9, "{ratio} vs {fastest}");
+    // A peer that fails, one that prints nothing useful, and --peer without --dump-rays.
+    for (cmd, dump, says) in [("false", true, "failed"), ("echo nothing", true, "no result line"), ("true", false, "--dump-rays")] {
+        let out = run(cmd, dump);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && err.contains(says), "{cmd}: {err}");
+        assert_eq!(err.lines().filter(|l| l.starts_with("error:")).count(), 1, "{err}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// CSV cells (quoted cells may hold commas).
 fn split_csv(line: &str) -> Vec<String> {
     let mut cells = vec![String::new()];

@@ -340,6 +340,13 @@ pub enum Command {
         /// scene as OBJ into this folder (format: README, "Same rays for other systems").
         #[arg(long)]
         dump_rays: Option<PathBuf>,
+        /// horn: a command run on the dumped rays (needs --dump-rays; the folder is appended as
+        /// its last argument), e.g. Mitsuba's Embree: "python3 ../shared/peers/mitsuba_same_rays.py
+        /// llvm_ad_rgb". Each line `SCENE-RAYS: peer=NAME rays=N Mrays/s=X same-answer=A/B` it
+        /// prints becomes a row (method peer:NAME), and the table gains the fastest kdray row
+        /// over it: the ratio measured in the same run on the same rays.
+        #[arg(long)]
+        peer: Option<String>,
         /// Largest K of chairs:K in the scaling suite (1, 4, …, 4096).
         #[arg(long, default_value_t = 1024)]
         max_chairs: u32,
@@ -429,12 +436,15 @@ pub fn run(cli: Cli) -> Result<()> {
             }
             Ok(())
         }
-        Command::Bench { suite, scene: scenes, device, size, reps, out, dump_rays, max_chairs, method, build } => {
+        Command::Bench { suite, scene: scenes, device, size, reps, out, dump_rays, peer, max_chairs, method, build } => {
             if size == 0 || size > 4096 || reps == 0 {
                 bail!("--size must be 1..=4096 and --reps at least 1");
             }
             if !(1..=4096).contains(&max_chairs) {
                 bail!("--max-chairs must be 1..=4096");
+            }
+            if peer.is_some() && (suite != "horn" || dump_rays.is_none()) {
+                bail!("--peer runs on the rays of bench horn: use it with the horn suite and --dump-rays DIR");
             }
             if suite != "all" && !crate::bench::SUITES.contains(&suite.as_str()) {
                 bail!("unknown bench suite '{suite}' (known: {}, all)", crate::bench::SUITES.join(", "));
@@ -452,6 +462,7 @@ pub fn run(cli: Cli) -> Result<()> {
                 build: build.options()?,
                 out,
                 dump_rays,
+                peer,
                 max_chairs,
                 methods: (!method.is_empty()).then_some(method),
                 progress: progress("bench"),

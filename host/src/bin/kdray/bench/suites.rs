@@ -7,7 +7,7 @@ use kdray::gpu::{median, Gpu};
 use kdray::kdtree::{self, BuildOptions, KdTreeData};
 use kdray::scene::{self, Scene};
 use kdray::accel::Accel;
-use anyhow::{bail, Result};
+use anyhow::{bail, Context, Result};
 use indicatif::ProgressBar;
 use kdray_shared::kdtree::Algorithm;
 use std::collections::HashMap;
@@ -26,6 +26,8 @@ pub struct Options<'g> {
     pub out: PathBuf,
     /// Also write every ray batch measured with its answers (see `dump`).
     pub dump_rays: Option<PathBuf>,
+    /// horn: a peer tracer's command, run on the dumped rays (see `peer_rows`).
+    pub peer: Option<String>,
     /// Largest K of `chairs:K` in `scaling`.
     pub max_chairs: u32,
     /// Only these methods' rows in `horn` (by `Accel::name`).
@@ -140,6 +142,66 @@ fn primary_and_shadow(o: &Options, bed: &Bed) -> Result<(RaySet, RaySet)> {
     Ok((primary, shadow))
 }
 
+/// Runs a peer tracer's command on the dumped rays in `dir` and adds a row (method
+/// `peer:NAME`) for each of its result lines, `SCENE-RAYS: peer=NAME rays=N Mrays/s=X
+/// same-answer=A/B` (`../shared/peers/mitsuba_same_rays.py` prints them) whose scene and ray type
+/// were measured here: its speed, and as "vs reference" the fraction of rays whose answer
+/// differs from the dumped one. Returns the peers' names. A command that fails, or prints no
+/// such line, is an error.
+fn peer_rows(cmd: &str, dir: &Path, rows: &mut Vec<Row>) -> Result<Vec<String>> {
+    println!("peer: {cmd} {}", dir.display());
+    let out = std::process::Command::new("sh")
+        .arg("-c")
+        .arg(format!("{cmd} \"$0\""))
+        .arg(dir)
+        .stderr(std::process::Stdio::inherit())
+        .output()
+        .with_context(|| format!("--peer: cannot run '{cmd}'"))?;
+    if !out.status.success() {
+        bail!("--peer '{cmd}' failed ({})", out.status);
+    }
+    let text = String::from_utf8_lossy(&out.stdout);
+    let mut names: Vec<String> = Vec::new();
+    for line in text.lines() {
+        let Some((label, rest)) = line.split_once(": peer=") else { continue };
+        let field = |key: &str| rest.split_whitespace().find_map(|f| f.strip_prefix(key));
+        let (Some(name), Some(rays), Some(mrays), Some(same)) = (rest.split_whitespace().next(), field("rays="), field("Mrays/s="), field("same-answer=")) else {
+            continue;
+        };
+        let parsed = (rays.parse::<usize>(), mrays.parse::<f64>(), same.split_once('/').map(|(a, b)| (a.parse::<usize>(), b.parse::<usize>())));
+        let (Ok(rays), Ok(mrays), Some((Ok(same), Ok(total)))) = parsed else {
+            bail!("--peer: cannot read '{line}'");
+        };
+        let Some(ours) = rows.iter().find(|r| !r.method.starts_with("peer:") && label.strip_prefix(r.scene.as_str()).and_then(|k| k.strip_prefix('-')) == Some(r.ray_type.replace(' ', "-").as_str())) else {
+            continue;
+        };
+        let row = Row {
+            method: format!("peer:{name}"),
+            rays,
+            mrays_gpu: None,
+            mrays_wall: mrays,
+            nodes: f64::NAN,
+            leaves: f64::NAN,
+            tris: f64::NAN,
+            restarts: f64::NAN,
+            vs_stack: None,
+            oracle_mismatch: f64::NAN,
+            reference_mismatch: 1.0 - same as f64 / total.max(1) as f64,
+            fallbacks: None,
+            notes: format!("run by --peer on the dumped rays; {same}/{total} answers as the full stack's"),
+            ..ours.clone()
+        };
+        if !names.iter().any(|n| n == name) {
+            names.push(name.to_string());
+        }
+        rows.push(row);
+    }
+    if names.is_empty() {
+        bail!("--peer '{cmd}' printed no result line for the scenes measured ('SCENE-RAYS: peer=NAME rays=N Mrays/s=X same-answer=A/B')");
+    }
+    Ok(names)
+}
+
 fn dump_set(o: &Options, bed: &Bed, set: &RaySet) -> Result<()> {
     let Some(dir) = &o.dump_rays else { return Ok(()) };
     let accel = Accel::kd(Algorithm::Stack);
@@ -190,13 +252,17 @@ fn horn(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
             }
         }
     }
+    let peers = match (&o.peer, &o.dump_rays) {
+        (Some(cmd), Some(dir)) => peer_rows(cmd, dir, &mut rows)?,
+        _ => Vec::new(),
+    };
     let find = |scene: &str, kind: &str, m: &str| rows.iter().find(|r| r.scene == scene && r.ray_type == kind && r.method == m);
     let mut header = vec!["Mrays/s".to_string()];
     for n in &names {
         header.push(format!("{n} PS"));
         header.push(format!("{n} SS"));
     }
-    let cells: Vec<Vec<String>> = horn_rows
+    let mut cells: Vec<Vec<String>> = horn_rows
         .iter()
         .map(|(label, accel)| {
             let mut r = vec![format!("{label} (`{}`)", accel.name())];
@@ -208,6 +274,25 @@ fn horn(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
             r
         })
         .collect();
+    // Each peer, and the fastest kdray row over it (same rays, same machine, same run).
+    for peer in &peers {
+        let method = format!("peer:{peer}");
+        let mut own = vec![format!("peer: {peer}, same rays")];
+        let mut ratio = vec![format!("fastest kdray ÷ {peer}")];
+        for n in &names {
+            for kind in ["primary", "shadow"] {
+                let theirs = find(n, kind, &method).map(|x| x.mrays());
+                let ours = rows.iter().filter(|r| r.scene == *n && r.ray_type == kind && !r.method.starts_with("peer:")).map(|r| r.mrays()).fold(None, |m: Option<f64>, v| Some(m.map_or(v, |m| m.max(v))));
+                own.push(theirs.map(|v| format!("{v:.1}")).unwrap_or_default());
+                ratio.push(match (ours, theirs) {
+                    (Some(a), Some(b)) if b > 0.0 => format!("{:.2}", a / b),
+                    _ => String::new(),
+                });
+            }
+        }
+        cells.push(own);
+        cells.push(ratio);
+    }
     let summary = format!(
         "## Horn et al. 2007, Table 1 layout\n\nPS = primary rays (closest hit), SS = shadow rays (any hit), {}² pixels; Mrays/s from GPU time where available. \
          Horn's rows are cumulative: kd-restart, then packets of four, then push-down, then a short stack of 3.\n\n{}",

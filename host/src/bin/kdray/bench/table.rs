@@ -40,6 +40,16 @@ impl Row {
     }
 }
 
+/// `v` with `p` digits after the point (in exponent form with `exp`), `none` where it was not
+/// measured (NaN: a peer's counts and oracle check).
+fn num(v: f64, p: usize, exp: bool, none: &str) -> String {
+    match (v.is_nan(), exp) {
+        (true, _) => none.to_string(),
+        (false, true) => format!("{v:.p$e}"),
+        (false, false) => format!("{v:.p$}"),
+    }
+}
+
 fn opt(v: Option<f64>, p: usize) -> String {
     v.map(|x| format!("{x:.p$}")).unwrap_or_default()
 }
@@ -55,7 +65,7 @@ pub fn write_rows(dir: &Path, name: &str, title: &str, device: &str, summary: &s
     for r in rows {
         writeln!(
             csv,
-            "{date},{},{},{},{},{},{},{},{},{},{:.3},{:.3},{:.3},{:.3},{:.4},{},{:.3e},{:.3e},{}",
+            "{date},{},{},{},{},{},{},{},{},{},{:.3},{},{},{},{},{},{},{},{}",
             csv_cell(&machine),
             csv_cell(device),
             csv_cell(&r.scene),
@@ -66,13 +76,13 @@ pub fn write_rows(dir: &Path, name: &str, title: &str, device: &str, summary: &s
             csv_cell(&r.method),
             opt(r.mrays_gpu, 3),
             r.mrays_wall,
-            r.nodes,
-            r.leaves,
-            r.tris,
-            r.restarts,
+            num(r.nodes, 3, false, ""),
+            num(r.leaves, 3, false, ""),
+            num(r.tris, 3, false, ""),
+            num(r.restarts, 4, false, ""),
             opt(r.vs_stack, 4),
-            r.oracle_mismatch,
-            r.reference_mismatch,
+            num(r.oracle_mismatch, 3, true, ""),
+            num(r.reference_mismatch, 3, true, ""),
             csv_cell(&r.notes)
         )?;
     }
@@ -88,7 +98,7 @@ pub fn write_rows(dir: &Path, name: &str, title: &str, device: &str, summary: &s
     for r in rows {
         writeln!(
             md,
-            "| {} | {} | {}² | {} | {} | {} | {} | {:.1} | {:.1} | {} | {:.2} | {:.2} | {:.2} | {:.2e} | {:.2e} | {} |",
+            "| {} | {} | {}² | {} | {} | {} | {} | {:.1} | {} | {} | {} | {} | {} | {} | {} | {} |",
             r.scene,
             r.triangles,
             r.resolution,
@@ -97,13 +107,13 @@ pub fn write_rows(dir: &Path, name: &str, title: &str, device: &str, summary: &s
             r.method,
             opt(r.mrays_gpu, 1),
             r.mrays_wall,
-            r.nodes,
+            num(r.nodes, 1, false, "–"),
             r.vs_stack.map(|v| format!("{:+.1} %", 100.0 * v)).unwrap_or_else(|| "–".into()),
-            r.leaves,
-            r.tris,
-            r.restarts,
-            r.oracle_mismatch,
-            r.reference_mismatch,
+            num(r.leaves, 2, false, "–"),
+            num(r.tris, 2, false, "–"),
+            num(r.restarts, 2, false, "–"),
+            num(r.oracle_mismatch, 2, true, "–"),
+            num(r.reference_mismatch, 2, true, "–"),
             r.notes
         )?;
     }
