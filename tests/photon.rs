@@ -726,10 +726,7 @@ impl Runtime for LostAfter {
 /// lost before the first checkpoint, the render is an error.
 #[test]
 fn a_render_whose_device_is_lost_returns_the_passes_before_it() {
-    let s = scene::load("cornell").unwrap();
-    let tr = tree(&s);
-    let cam = s.camera.to_pod(24, 24);
-    let accel = Accel::kd(Algorithm::ShortStack(3));
+    let (s, tr, cam, accel) = small_cornell();
     let options = |passes| PhotonOptions { photons: 1 << 12, passes, checkpoint_seconds: 0.0, ..Default::default() };
     let render = |rt: &dyn Runtime, passes| {
         let t = Tracer::new(rt, &s, Some(&tr)).unwrap();
@@ -759,16 +756,67 @@ fn a_render_whose_device_is_lost_returns_the_passes_before_it() {
     assert!(matches!(e.kind(), kdray::Error::DeviceLost(_)), "{e}");
 }
 
+/// The Cornell box, its kd-tree, a 24² camera and the short stack: the fault and cancellation
+/// tests' set-up.
+fn small_cornell() -> (Scene, KdTreeData, kdray_shared::Camera, Accel) {
+    let s = scene::load("cornell").unwrap();
+    let tr = tree(&s);
+    let cam = s.camera.to_pod(24, 24);
+    (s, tr, cam, Accel::kd(Algorithm::ShortStack(3)))
+}
+
+/// A caller stops a render through `Progress::cancelled` (asked after each photon pass and
+/// path sample group): the render returns, without an error, the image of the work done —
+/// exactly a render asked for that much — on both runtimes (path tracing natively).
+#[test]
+fn a_cancelled_render_returns_the_work_done() {
+    struct StopAfter {
+        after: u64,
+        done: std::cell::Cell<u64>,
+        asked: std::cell::Cell<u32>,
+    }
+    impl kdray::integrator::Progress for StopAfter {
+        fn advance(&self, n: u64) {
+            self.done.set(self.done.get() + n);
+        }
+        fn cancelled(&self) -> bool {
+            self.asked.set(self.asked.get() + 1);
+            self.done.get() >= self.after
+        }
+    }
+    let (s, tr, cam, accel) = small_cornell();
+    for rt in runtimes() {
+        let t = Tracer::new(rt, &s, Some(&tr)).unwrap();
+        let options = |passes| PhotonOptions { photons: 1 << 12, passes, ..Default::default() };
+        let stop = StopAfter { after: 2, done: 0.into(), asked: 0.into() };
+        let mut map = PhotonMap::new(&t, accel, Some(&tr), &s, options(16)).unwrap();
+        let (img, stats) = pm::render(&mut map, &cam, &stop).unwrap();
+        assert!(stop.asked.get() >= 2 && stats.interrupted.is_none(), "{}", rt.name());
+        // The passes already in flight when it was asked finish too.
+        assert!((2..16).contains(&stats.passes), "{}: {} passes", rt.name(), stats.passes);
+        let mut map = PhotonMap::new(&t, accel, Some(&tr), &s, options(stats.passes)).unwrap();
+        let (want, _) = pm::render(&mut map, &cam, &()).unwrap();
+        assert!(img.radiance == want.radiance, "{}: the image of the {} passes done", rt.name(), stats.passes);
+        // Path tracing: natively, 2 000 samples per pixel come in several sample groups (a GPU
+        // takes them in one; the loop is the same).
+        if !rt.is_native() {
+            continue;
+        }
+        let stop = StopAfter { after: 1, done: 0.into(), asked: 0.into() };
+        let (img, stats) = path::render_checkpointed(&t, accel, &cam, &PathOptions::path(3, 8, 2000), &stop, f64::INFINITY).unwrap();
+        assert!(stats.samples > 0 && stats.samples < 2000 && stats.interrupted.is_none(), "{}: {} samples", rt.name(), stats.samples);
+        let want = path::render(&t, accel, &cam, &PathOptions::path(3, 8, stats.samples), &()).unwrap();
+        assert!(img.radiance == want.radiance, "{}: the image of the {} samples done", rt.name(), stats.samples);
+    }
+}
+
 /// A pass whose photons do not fit the records (their capacity set to the first pass's count,
 /// so that later passes that store more overflow) is found one pass late and redone from the
 /// last checkpoint (every pass) or from the start (no checkpoint): the image and statistics are
 /// those of a render whose records were large enough, bit for bit, on both runtimes.
 #[test]
 fn passes_whose_photons_overflow_the_records_are_redone() {
-    let s = scene::load("cornell").unwrap();
-    let tr = tree(&s);
-    let cam = s.camera.to_pod(24, 24);
-    let accel = Accel::kd(Algorithm::ShortStack(3));
+    let (s, tr, cam, accel) = small_cornell();
     for rt in runtimes() {
         let t = Tracer::new(rt, &s, Some(&tr)).unwrap();
         for checkpoint_seconds in [0.0, 1e9] {
@@ -792,10 +840,7 @@ fn passes_whose_photons_overflow_the_records_are_redone() {
 /// samples per pixel — and says why; lost in the first, it is an error.
 #[test]
 fn a_path_traced_render_whose_device_is_lost_returns_the_samples_before_it() {
-    let s = scene::load("cornell").unwrap();
-    let tr = tree(&s);
-    let cam = s.camera.to_pod(24, 24);
-    let accel = Accel::kd(Algorithm::ShortStack(3));
+    let (s, tr, cam, accel) = small_cornell();
     // 2 000 samples per pixel of 576 pixels: several sample groups of a native batch.
     let o = |spp| PathOptions::path(3, 8, spp);
     let render = |rt: &dyn Runtime, spp| {
@@ -824,10 +869,7 @@ fn a_destroyed_device_mid_render_returns_the_passes_before_it() {
     let Some(g) = common::gpu() else { return };
     // A device of its own: destroying it must not break the other tests' GPU.
     let gpu = kdray::Gpu::open(g.index).unwrap();
-    let s = scene::load("cornell").unwrap();
-    let tr = tree(&s);
-    let cam = s.camera.to_pod(24, 24);
-    let accel = Accel::kd(Algorithm::ShortStack(3));
+    let (s, tr, cam, accel) = small_cornell();
     struct DestroyAfter<'a>(&'a kdray::Gpu, std::cell::Cell<u64>);
     impl kdray::integrator::Progress for DestroyAfter<'_> {
         fn advance(&self, n: u64) {

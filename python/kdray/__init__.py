@@ -268,7 +268,7 @@ class Scene:
                spp: Optional[int] = None, passes: int = 16, photons: Optional[int] = None,
                bounces: Optional[int] = None, seed: int = 1, device: str = "auto",
                traversal: str = "bvh", camera: Optional[dict] = None,
-               time_limit: Optional[float] = None) -> np.ndarray:
+               time_limit: Optional[float] = None, progress=None) -> np.ndarray:
         """The scene seen by its camera (or ``camera``: a dict of eye, look_at, up and fov,
         vertical in degrees; missing entries from the scene's) as (height, width, 3) float32
         linear RGB radiance, top row first.
@@ -279,6 +279,11 @@ class Scene:
         (path tracing with next-event estimation, ``spp`` samples, default 64) or ``"direct"``
         (direct light only). ``bounces`` caps eye paths (defaults: 16, 32, 4). The scene needs
         a light (emissive triangles or point lights): a mesh made from arrays has none.
+
+        ``progress``, when given, is called as ``progress(done, total)`` as the render goes
+        (photon passes, or path samples over all pixels); an exception it raises stops the
+        render and propagates, and so does Ctrl-C (``KeyboardInterrupt``), checked after every
+        pass or sample group.
         """
         height = width if height is None else height
         for name, value, lo, hi in (("width", width, 1, 16384), ("height", height, 1, 16384), ("passes", passes, 1, 1 << 20),
@@ -320,9 +325,12 @@ class Scene:
             if not ok:
                 raise ValueError("camera: eye and look_at must differ, and up must not be parallel to the view")
             cam = tuple(tuple(float(x) for x in v) for v in vecs) + (float(fov),)
+        if progress is not None and not callable(progress):
+            raise TypeError(f"progress: expected a callable progress(done, total), got {type(progress).__name__}")
         img, note = self._s.render(int(width), int(height), integrator, int(spp), int(passes),
                                    None if photons is None else int(photons), int(bounces), int(seed),
-                                   _device(device), _traversal(traversal), cam, None if time_limit is None else float(time_limit))
+                                   _device(device), _traversal(traversal), cam, None if time_limit is None else float(time_limit),
+                                   progress)
         if note is not None:
             import warnings
             warnings.warn(note, RuntimeWarning, stacklevel=2)

@@ -9,6 +9,7 @@
 //! one tracer per device and structure, built on first use.
 use kdray::bvh::BvhData;
 use kdray::integrator::path::{self, PathOptions};
+use kdray::integrator::Progress;
 use kdray::integrator::photon::{self as pm, PhotonMap, PhotonOptions};
 use kdray::kdtree::{self, KdTreeData};
 use kdray::runtime::cpu::{check_cpu, NATIVE};
@@ -17,6 +18,7 @@ use kdray::{Accel, Error, Gpu, Runtime, Tracer};
 use numpy::{IntoPyArray, PyArray1, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyImportError, PyOSError, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, OnceLock, PoisonError};
 
 pyo3::create_exception!(_native, NoGpuError, PyRuntimeError, "No usable Vulkan GPU adapter (or not the one asked for).");
@@ -176,6 +178,45 @@ fn rays_from(data: &[f32], cols: usize, t_min: Option<&[f32]>, t_max: Option<&[f
             Ray::new(o, d, t_min.map_or(lo, |t| t[i]), t_max.map_or(hi, |t| t[i]))
         })
         .collect()
+}
+
+/// A render's progress for Python: calls `callback(done, total)` as work completes, and stops
+/// the render (`Progress::cancelled`) when the callback raises or a signal handler does
+/// (Ctrl-C: `KeyboardInterrupt`), keeping the exception for the caller.
+struct PyProgress {
+    callback: Option<Py<PyAny>>,
+    total: AtomicU64,
+    done: AtomicU64,
+    error: Mutex<Option<PyErr>>,
+}
+
+impl PyProgress {
+    fn keep(&self, e: PyErr) {
+        lock(&self.error).get_or_insert(e);
+    }
+}
+
+impl Progress for PyProgress {
+    fn start(&self, total: u64) {
+        self.total.store(total, Ordering::Relaxed);
+    }
+
+    fn advance(&self, n: u64) {
+        let done = self.done.fetch_add(n, Ordering::Relaxed) + n;
+        if let Some(cb) = &self.callback {
+            let total = self.total.load(Ordering::Relaxed);
+            if let Err(e) = Python::attach(|py| cb.call1(py, (done, total)).map(drop)) {
+                self.keep(e);
+            }
+        }
+    }
+
+    fn cancelled(&self) -> bool {
+        if let Err(e) = Python::attach(|py| py.check_signals()) {
+            self.keep(e);
+        }
+        lock(&self.error).is_some()
+    }
 }
 
 /// The unit normal of triangle (a, b, c) by the right-hand rule (computed in f64: exact to
@@ -345,7 +386,7 @@ impl Scene {
     /// Renders the scene's camera view (or the camera given): linear RGB radiance, H·W·3
     /// float32, rows top first, and a warning line when fewer passes ran than asked (a pass
     /// failed after a checkpoint; the image holds those before it).
-    #[pyo3(signature = (width, height, integrator, spp, passes, photons, bounces, seed, device, traversal, camera, time_limit))]
+    #[pyo3(signature = (width, height, integrator, spp, passes, photons, bounces, seed, device, traversal, camera, time_limit, progress))]
     #[allow(clippy::too_many_arguments)]
     fn render<'py>(
         &self,
@@ -362,6 +403,7 @@ impl Scene {
         traversal: &str,
         camera: Option<([f32; 3], [f32; 3], [f32; 3], f32)>,
         time_limit: Option<f64>,
+        progress: Option<Py<PyAny>>,
     ) -> PyResult<(Bound<'py, PyArray1<f32>>, Option<String>)> {
         let accel = Accel::parse(traversal).map_err(|e| py_err("traversal", e))?;
         let mut spec = self.scene.camera.clone();
@@ -370,12 +412,14 @@ impl Scene {
         }
         let cam = spec.to_pod(width, height);
         let integrator = integrator.to_string();
-        let (radiance, note) = py.detach(|| -> PyResult<_> {
+        let report = PyProgress { callback: progress, total: AtomicU64::new(0), done: AtomicU64::new(0), error: Mutex::new(None) };
+        let rendered = py.detach(|| -> PyResult<_> {
             let t = self.tracer(device, accel)?;
             let ctx = |e| py_err(&self.scene.name, e);
+            let paths = |o: &PathOptions| path::render_checkpointed(&t, accel, &cam, o, &report, f64::INFINITY).map(|(out, _)| (out, None)).map_err(ctx);
             let (out, note) = match integrator.as_str() {
-                "direct" => (path::render(&t, accel, &cam, &PathOptions::direct(seed, bounces), &()).map_err(ctx)?, None),
-                "path" => (path::render(&t, accel, &cam, &PathOptions::path(seed, bounces, spp), &()).map_err(ctx)?, None),
+                "direct" => paths(&PathOptions::direct(seed, bounces))?,
+                "path" => paths(&PathOptions::path(seed, bounces, spp))?,
                 "photon" => {
                     let o = PhotonOptions {
                         photons: photons.unwrap_or(if t.rt.is_native() { 1 << 18 } else { 1 << 20 }),
@@ -387,13 +431,18 @@ impl Scene {
                         ..Default::default()
                     };
                     let mut map = PhotonMap::new(&t, accel, None, &self.scene, o).map_err(ctx)?;
-                    let (out, s) = pm::render(&mut map, &cam, &()).map_err(ctx)?;
+                    let (out, s) = pm::render(&mut map, &cam, &report).map_err(ctx)?;
                     (out, s.interrupted.map(|e| format!("{e}; the image holds the {} passes before it", s.passes)))
                 }
                 other => return Err(PyValueError::new_err(format!("integrator: unknown '{other}': use photon, path or direct"))),
             };
             Ok((out.radiance.iter().flat_map(|p| [p[0], p[1], p[2]]).collect::<Vec<f32>>(), note))
-        })?;
+        });
+        // Stopped by the callback or a signal: its exception, not the partial image.
+        if let Some(e) = lock(&report.error).take() {
+            return Err(e);
+        }
+        let (radiance, note) = rendered?;
         Ok((radiance.into_pyarray(py), note))
     }
 }

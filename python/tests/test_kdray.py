@@ -439,3 +439,49 @@ def test_without_a_gpu():
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
     assert out.stdout.startswith("device: no GPU adapter"), out.stdout
+
+
+def test_render_progress_and_stopping_it():
+    scene = kdray.Scene.from_file("cornell")
+    seen = []
+    img = scene.render(16, passes=4, photons=1 << 12, device="cpu", progress=lambda done, total: seen.append((done, total)))
+    assert seen == [(1, 4), (2, 4), (3, 4), (4, 4)] and img.shape == (16, 16, 3)
+    seen = []
+    scene.render(16, integrator="path", spp=8, device="cpu", progress=lambda d, t: seen.append((d, t)))
+    assert seen[-1] == (16 * 16 * 8, 16 * 16 * 8) and all(a[0] < b[0] for a, b in zip(seen, seen[1:]))
+
+    class Enough(Exception):
+        pass
+
+    def stop(done, total):
+        if done >= 2:
+            raise Enough(done)
+
+    calls = []
+    with pytest.raises(Enough):
+        scene.render(16, passes=1000, photons=1 << 12, device="cpu", progress=lambda d, t: (calls.append(d), stop(d, t)))
+    assert len(calls) < 10, "the render stopped soon after the callback raised"
+    with pytest.raises(TypeError, match="progress"):
+        scene.render(16, progress=3)
+
+
+def test_ctrl_c_stops_a_render():
+    import _thread
+    import signal
+
+    scene = kdray.Scene.from_file("cornell")
+    scene.render(16, passes=1, photons=1 << 12, device="cpu")  # the tracer built
+    # Python's own Ctrl-C handler (a process started in the background ignores SIGINT, and
+    # then Python installs none).
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        timer = threading.Timer(0.3, _thread.interrupt_main)
+        timer.start()
+        t0 = time.perf_counter()
+        with pytest.raises(KeyboardInterrupt):
+            # The time limit ends it if the interrupt is not heard (the test then fails).
+            scene.render(64, passes=100000, photons=1 << 14, device="cpu", time_limit=20)
+        timer.join()
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert time.perf_counter() - t0 < 15

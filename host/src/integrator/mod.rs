@@ -17,6 +17,12 @@ pub trait Progress {
     fn advance(&self, _n: u64) {}
     /// A short status line, e.g. `"12.3 M photons/s"`.
     fn status(&self, _text: &str) {}
+    /// Whether the caller wants the render to stop (asked after each photon pass or path
+    /// sample group): the render then returns the image of the work done so far, like a time
+    /// limit (`PhotonStats::passes`, `PathStats::samples` say how much), not an error.
+    fn cancelled(&self) -> bool {
+        false
+    }
 }
 
 impl Progress for () {}

@@ -224,7 +224,8 @@ pub fn place(out: &mut RenderOutput, cam: &Camera, first: usize, hits: Vec<Hit>,
 /// What a path-traced render did.
 #[derive(Clone, Debug, Default)]
 pub struct PathStats {
-    /// Samples per pixel in the image (fewer than asked when a failure interrupted it).
+    /// Samples per pixel in the image (fewer than asked when a failure interrupted it, or the
+    /// caller through `Progress::cancelled`).
     pub samples: u32,
     /// Wall time of the render, in seconds.
     pub seconds: f64,
@@ -292,6 +293,9 @@ pub fn render_checkpointed(t: &Tracer, accel: Accel, cam: &Camera, o: &PathOptio
         }
         done += s;
         progress.advance(n as u64 * s as u64);
+        if g + 1 < groups && progress.cancelled() {
+            break;
+        }
         let secs = start.elapsed().as_secs_f64();
         if g + 1 < groups && secs - saved_at >= checkpoint_seconds {
             match read_films(t, cam, &batches, &film_refs) {

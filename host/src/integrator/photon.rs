@@ -195,7 +195,8 @@ impl Default for PhotonOptions {
 /// What one render did.
 #[derive(Clone, Debug, Default)]
 pub struct PhotonStats {
-    /// Passes run (fewer than asked when `time_limit` ended the render).
+    /// Passes run (fewer than asked when `time_limit` ended the render, or the caller through
+    /// `Progress::cancelled`).
     pub passes: u32,
     /// Photons emitted, over all passes.
     pub emitted: u64,
@@ -1012,7 +1013,7 @@ pub fn render(map: &mut PhotonMap, cam: &Camera, progress: &dyn Progress) -> Res
         progress.advance(1);
         let secs = start.elapsed().as_secs_f64();
         progress.status(&format!("{:.1} M photons/s", stats.emitted as f64 / secs / 1e6));
-        done |= k + 1 == map.o.passes || map.o.time_limit.is_some_and(|l| secs >= l);
+        done |= k + 1 == map.o.passes || map.o.time_limit.is_some_and(|l| secs >= l) || progress.cancelled();
         if !done && flight.is_empty() && secs - saved_at >= map.o.checkpoint_seconds {
             match read_film(t, cam, &batches, &fbs) {
                 Ok((out, films)) => saved = Some(Checkpoint { films, out, stats: stats.clone() }),
