@@ -88,7 +88,7 @@ pub fn clipped_bounds(v: [[f32; 3]; 3], b: Bounds) -> Option<Bounds> {
 
 /// The part of box `a` inside box `b` (conservative bounds of a triangle whose clipping
 /// rounding made degenerate; `a` must overlap `b`).
-fn overlap(a: Bounds, b: Bounds) -> Bounds {
+pub fn overlap(a: Bounds, b: Bounds) -> Bounds {
     let mut o = a;
     for k in 0..3 {
         o.0[k] = a.0[k].max(b.0[k]);

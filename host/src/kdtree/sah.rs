@@ -14,7 +14,7 @@
 //! it visits. Cells may be thinner than the rounding of a ray's t at their planes (any ray from
 //! far enough away sees them so): the traversals resolve that (the rules in `kdray_shared::kdtree`, `plane_band`); planes
 //! stay out of gaps narrower than 2^-18 of the scene's extent (`MIN_GAP`) for speed only.
-use super::clip::{clipped_bounds, tri_bounds, Bounds};
+use super::clip::{clipped_bounds, overlap, tri_bounds, Bounds};
 use crate::error::{bail, Result};
 use kdray_shared::aabb::Aabb;
 use kdray_shared::kdtree::{KdNode, KdTree, MAX_DEPTH};
@@ -287,6 +287,11 @@ impl Ctx<'_> {
         best
     }
 
+    /// Whether a node of `count` triangles at `depth` is a leaf without a split being looked for.
+    fn leaf_at_once(&self, count: usize, depth: u32) -> bool {
+        count <= self.opt.leaf_size || depth >= self.depth_limit
+    }
+
     /// The subtree of `w` on its own (its root at index 0).
     fn subtree(&self, w: Work) -> Flat {
         let mut out = Flat { nodes: vec![KdNode::default()], ..Default::default() };
@@ -302,7 +307,7 @@ impl Ctx<'_> {
             out.prims.extend_from_slice(tris);
             out.largest_leaf = out.largest_leaf.max(tris.len());
         };
-        if n <= self.opt.leaf_size || w.depth >= self.depth_limit {
+        if self.leaf_at_once(n, w.depth) {
             return leaf(out, &w.tris);
         }
         let split = match self.best_split(&w) {
@@ -363,8 +368,7 @@ impl Ctx<'_> {
         let ns = nl + nr - n;
         // A child that `build` will make a leaf without looking at it needs only its triangles:
         // no bounds, no clipping, no events (most leaves; the same tree).
-        let becomes_leaf = |count: usize| count <= self.opt.leaf_size || w.depth + 1 >= self.depth_limit;
-        let (l_leaf, r_leaf) = (becomes_leaf(nl), becomes_leaf(nr));
+        let (l_leaf, r_leaf) = (self.leaf_at_once(nl, w.depth + 1), self.leaf_at_once(nr, w.depth + 1));
         let mut lw = Work { tris: Vec::with_capacity(nl), bounds: Vec::with_capacity(if l_leaf { 0 } else { nl }), events: Default::default(), cell: lcell, depth: w.depth + 1, budget: w.budget };
         let mut rw = Work { tris: Vec::with_capacity(nr), bounds: Vec::with_capacity(if r_leaf { 0 } else { nr }), events: Default::default(), cell: rcell, depth: w.depth + 1, budget: w.budget };
         // A one-sided triangle's index in its child; the straddlers are clipped into both and
@@ -398,15 +402,8 @@ impl Ctx<'_> {
                         if is_leaf {
                             continue;
                         }
-                        let clipped = clipped_bounds(v, cell).unwrap_or_else(|| {
-                            // Numerically empty: fall back to the box overlap (conservative).
-                            let mut b = w.bounds[i];
-                            for a in 0..3 {
-                                b.0[a] = b.0[a].max(cell.0[a]);
-                                b.1[a] = b.1[a].min(cell.1[a]).max(b.0[a]);
-                            }
-                            b
-                        });
+                        // Numerically empty: the box overlap instead (conservative).
+                        let clipped = clipped_bounds(v, cell).unwrap_or_else(|| overlap(w.bounds[i], cell));
                         cw.bounds.push(clipped);
                     }
                     straddlers.push(ids);

@@ -63,6 +63,12 @@ pub fn write_obj(path: &Path, scene: &Scene) -> Result<()> {
     Ok(kdray::files::write(path, s)?)
 }
 
+/// The files of ray batch `label` of scene `scene` start with this: `SCENE-LABEL`, spaces as
+/// dashes (`conference-reflection-2`); peers name their results by it.
+pub fn stem(scene: &str, label: &str) -> String {
+    format!("{scene}-{}", label.replace(' ', "-"))
+}
+
 /// Writes one ray batch and its answers (`hits` for closest-hit batches, `occluded` for
 /// any-hit ones) as described in the module notes.
 pub fn write_batch(dir: &Path, scene: &Scene, label: &str, rays: &[Ray], hits: Option<&[Hit]>, occluded: Option<&[bool]>) -> Result<()> {
@@ -71,7 +77,7 @@ pub fn write_batch(dir: &Path, scene: &Scene, label: &str, rays: &[Ray], hits: O
     if !obj.exists() {
         write_obj(&obj, scene)?;
     }
-    let stem = format!("{}-{}", scene.name, label.replace(' ', "-"));
+    let stem = stem(&scene.name, label);
     let flat: Vec<f32> = rays.iter().flat_map(|r| [r.origin[0], r.origin[1], r.origin[2], r.t_min, r.dir[0], r.dir[1], r.dir[2], r.t_max]).collect();
     write_npy(&dir.join(format!("{stem}-rays.npy")), &[rays.len(), 8], &flat)?;
     let (ids, ts): (Vec<u32>, Vec<f32>) = match (hits, occluded) {

@@ -172,7 +172,7 @@ fn peer_rows(cmd: &str, dir: &Path, rows: &mut Vec<Row>) -> Result<Vec<String>> 
         let (Ok(rays), Ok(mrays), Some((Ok(same), Ok(total)))) = parsed else {
             bail!("--peer: cannot read '{line}'");
         };
-        let Some(ours) = rows.iter().find(|r| !r.method.starts_with("peer:") && label.strip_prefix(r.scene.as_str()).and_then(|k| k.strip_prefix('-')) == Some(r.ray_type.replace(' ', "-").as_str())) else {
+        let Some(ours) = rows.iter().find(|r| !r.method.starts_with("peer:") && dump::stem(&r.scene, &r.ray_type) == label) else {
             continue;
         };
         let row = Row {
