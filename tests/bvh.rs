@@ -85,9 +85,17 @@ fn check_hits(name: &str, s: &Scene, b: &BvhData, rays: &[Ray]) {
     let oracle = cpu.closest_hits(Accel::BRUTE, rays).unwrap();
     let oracle_any = cpu.any_hits(Accel::BRUTE, rays).unwrap();
     common::assert_matches_oracle(&format!("{name}: native"), &cpu, Accel::BVH, rays, &oracle, &oracle_any);
+    common::assert_matches_oracle(&format!("{name}: native"), &cpu, Accel::BVH_PACKETS, rays, &oracle, &oracle_any);
     if let Some(g) = common::gpu() {
         let gpu = Tracer::new(g, s, None).unwrap().with_bvh(b).unwrap();
+        // The packets: exactly the GPU's one-ray walk.
         let hits = gpu.closest_hits(Accel::BVH, rays).unwrap();
+        let packed = gpu.closest_hits(Accel::BVH_PACKETS, rays).unwrap();
+        let bad: Vec<usize> = (0..rays.len()).filter(|&i| packed[i] != hits[i]).collect();
+        if let Some(&i) = bad.first() {
+            panic!("{name}: GPU bvh+packets differs from the GPU BVH on {} of {} rays; first: {:?} gives {:?}, BVH {:?}, oracle {:?}", bad.len(), rays.len(), rays[i], packed[i], hits[i], oracle[i]);
+        }
+        assert_eq!(gpu.any_hits(Accel::BVH_PACKETS, rays).unwrap(), gpu.any_hits(Accel::BVH, rays).unwrap(), "{name}: GPU bvh+packets any-hit differs from the GPU BVH");
         let agree = |a: &Hit, b: &Hit| a.prim == b.prim || (a.is_hit() && b.is_hit() && (a.t - b.t).abs() <= 1e-6 * a.t.abs());
         let bad: Vec<usize> = (0..rays.len()).filter(|&i| !agree(&hits[i], &oracle[i])).collect();
         if let Some(&i) = bad.first() {

@@ -520,7 +520,7 @@ fn scene_arrays_split_across_bindings_give_the_same_answers() {
     rays.extend(common::random_dirs(300, 12).iter().map(|d| Ray::new([278.0 + 900.0 * d[0], 273.0 + 900.0 * d[1], 279.5 + 900.0 * d[2]], [-d[0], -d[1], -d[2]], 0.0, f32::INFINITY)));
     let mut accels = Accel::all();
     accels.extend(Accel::gpu_packets());
-    accels.extend([Accel::decomposed(4), Accel::BVH]);
+    accels.extend([Accel::decomposed(4), Accel::BVH, Accel::BVH_PACKETS]);
     let cam = scene.camera.to_pod(24, 24);
     let mut runtimes: Vec<&dyn Runtime> = vec![&NATIVE];
     if let Some(g) = common::gpu() {

@@ -76,8 +76,10 @@ fn check_on(name: &str, scene: &Scene, tree: &KdTreeData, rays: &[Ray], hard: us
     let cpu = Tracer::new(&NATIVE, scene, Some(tree)).unwrap().with_bvh(&bvh).unwrap();
     let oracle = cpu.closest_hits(Accel::BRUTE, rays).unwrap();
     let oracle_any = cpu.any_hits(Accel::BRUTE, rays).unwrap();
-    // The wide BVH, natively: bit-identical to the oracle.
+    // The wide BVH, natively: bit-identical to the oracle, one ray at a time and in packets
+    // (the hard cases together, then random rays in mixed octants).
     common::assert_matches_oracle(&format!("{name}: CPU"), &cpu, Accel::BVH, rays, &oracle, &oracle_any);
+    common::assert_matches_oracle(&format!("{name}: CPU"), &cpu, Accel::BVH_PACKETS, rays, &oracle, &oracle_any);
     for alg in cpu_algorithms() {
         let hits = cpu.closest_hits(Accel::kd(alg), rays).unwrap();
         let bad: Vec<usize> = (0..rays.len()).filter(|&i| hits[i] != oracle[i]).collect();
@@ -135,6 +137,14 @@ fn check_on(name: &str, scene: &Scene, tree: &KdTreeData, rays: &[Ray], hard: us
         let grouped: Vec<Ray> = sample.iter().map(|&i| rays[i]).collect();
         let single = gpu.closest_hits(Accel::kd(Algorithm::Stack), &grouped).unwrap();
         let single_any = gpu.any_hits(Accel::kd(Algorithm::Stack), &grouped).unwrap();
+        // The BVH's packets: exactly the GPU's one-ray BVH walk.
+        let wide = gpu.closest_hits(Accel::BVH, &grouped).unwrap();
+        let wide_any = gpu.any_hits(Accel::BVH, &grouped).unwrap();
+        let (packed, packed_any) = (gpu.closest_hits(Accel::BVH_PACKETS, &grouped).unwrap(), gpu.any_hits(Accel::BVH_PACKETS, &grouped).unwrap());
+        let bad = (0..n).filter(|&k| packed[k] != wide[k]).count();
+        assert_eq!(bad, 0, "{name}: GPU bvh+packets differs from the GPU BVH on {bad} of {n} rays");
+        let bad = (0..n).filter(|&k| packed_any[k] != wide_any[k]).count();
+        assert_eq!(bad, 0, "{name}: GPU bvh+packets any-hit differs from the GPU BVH on {bad} of {n} rays");
         for accel in gpu_grouped() {
             let hits = gpu.closest_hits(accel, &grouped).unwrap();
             let bad: Vec<usize> = (0..n).filter(|&k| hits[k] != single[k]).collect();

@@ -1,6 +1,6 @@
 //! How hits are found, as four independent choices: the structure searched (brute force, the
 //! kd-tree or the compressed wide BVH), the traversal of that structure, the grouping of rays (one per thread, or
-//! packets of four) and the pipeline (one kernel per query, or the decomposed traverse → leaf
+//! packets) and the pipeline (one kernel per query, or the decomposed traverse → leaf
 //! list → intersect → fallback). `Accel` names one combination; `Accel::parse` reads the CLI's
 //! names and rejects combinations that do not exist.
 use crate::kernels::TraceMethod;
@@ -23,7 +23,9 @@ pub enum Structure {
 pub enum Grouping {
     /// One ray per thread.
     Single,
-    /// Four rays with lane masks (Wald; Horn et al.'s packet variant on the GPU).
+    /// Four rays per thread with lane masks: the kd-tree's Horn et al. packets (Wald's, four
+    /// lanes on both sides), or the BVH's packets (natively eight lanes: two threads' rays
+    /// together; on the GPU a thread's four rays one by one).
     Packet4,
 }
 
@@ -76,19 +78,25 @@ impl Accel {
         Accel { structure: Structure::KdTree, traversal, grouping: Grouping::Packet4, pipeline: Pipeline::Monolithic }
     }
 
+    /// The compressed 8-wide BVH in packets: natively `bvh::traverse_packet` over eight rays
+    /// (one AVX register per value); on the GPU four rays per thread, each traced alone (the
+    /// packet walk is the CPU's: see `kdray_shared::bvh::packet`).
+    pub const BVH_PACKETS: Accel = Accel { structure: Structure::Bvh, traversal: Algorithm::Stack, grouping: Grouping::Packet4, pipeline: Pipeline::Monolithic };
+
     /// The decomposed pipeline with leaf lists of `capacity` entries.
     pub const fn decomposed(capacity: u32) -> Accel {
         Accel { structure: Structure::KdTree, traversal: Algorithm::Stack, grouping: Grouping::Single, pipeline: Pipeline::Decomposed { capacity } }
     }
 
     /// `brute`, `bvh`, `stack`, `restart`, `pushdown`, `shortstack` (= `shortstack:3`),
-    /// `shortstack:N`, any kd traversal followed by `+packets`, or `decomposed[:CAPACITY]`.
+    /// `shortstack:N`, `bvh` or any kd traversal followed by `+packets`, or
+    /// `decomposed[:CAPACITY]`.
     pub fn parse(s: &str) -> Result<Accel> {
         if let Some(alg) = s.strip_suffix("+packets") {
             let a = Accel::parse(alg)?;
             return match a.with_packets() {
                 Some(p) => Ok(p),
-                None => bail!(InvalidInput: "'+packets' applies to the kd traversals (stack, restart, pushdown, shortstack[:N]), not '{alg}'"),
+                None => bail!(InvalidInput: "'+packets' applies to bvh and the kd traversals (stack, restart, pushdown, shortstack[:N]), not '{alg}'"),
             };
         }
         if let Some(rest) = s.strip_prefix("decomposed") {
@@ -120,22 +128,24 @@ impl Accel {
     pub fn name(&self) -> String {
         match (self.structure, self.grouping, self.pipeline) {
             (Structure::Brute, _, _) => "brute".into(),
-            (Structure::Bvh, _, _) => "bvh".into(),
+            (Structure::Bvh, Grouping::Single, _) => "bvh".into(),
+            (Structure::Bvh, Grouping::Packet4, _) => "bvh+packets".into(),
             (_, _, Pipeline::Decomposed { capacity }) => format!("decomposed:{capacity}"),
             (_, Grouping::Single, _) => alg_name(self.traversal),
             (_, Grouping::Packet4, _) => format!("{}+packets", alg_name(self.traversal)),
         }
     }
 
-    /// The same traversal with 4-ray packets (`None` for brute force and the decomposed pipeline).
+    /// The same traversal in packets (`None` for brute force and the decomposed pipeline).
     pub fn with_packets(self) -> Option<Accel> {
         match (self.structure, self.pipeline) {
             (Structure::KdTree, Pipeline::Monolithic) => Some(Accel::packet(self.traversal)),
+            (Structure::Bvh, Pipeline::Monolithic) => Some(Accel::BVH_PACKETS),
             _ => None,
         }
     }
 
-    /// Whether rays are traced in packets of four.
+    /// Whether rays are traced in packets.
     pub fn is_packet(self) -> bool {
         self.grouping == Grouping::Packet4
     }
@@ -181,7 +191,8 @@ impl Accel {
         v
     }
 
-    /// The packet traversals the GPU module has kernels for.
+    /// The kd-tree's packet traversals the GPU module has kernels for (the BVH's is
+    /// `Accel::BVH_PACKETS`).
     pub fn gpu_packets() -> Vec<Accel> {
         let names = gpu_entry_points();
         [Algorithm::Stack, Algorithm::Restart, Algorithm::PushDown]

@@ -65,9 +65,33 @@ pub fn counts(tris: &[Triangle], tree: &KdTreeData, accel: Accel, rays: &[Ray], 
 }
 
 /// Traversal counters of the wide BVH (closest hit if `closest`, else any hit), one per group
-/// of four rays in order (summed over the four), like `counts`.
-pub fn bvh_counts(bvh: &crate::bvh::BvhData, rays: &[Ray], closest: bool) -> Vec<Counters> {
+/// of four rays in order (summed over the four), like `counts`. With `packets`, as the native
+/// runtime runs `bvh+packets`: eight rays per packet, whose node and leaf visits count once for
+/// the eight (in the first of its two groups; the second gets zeros).
+pub fn bvh_counts(bvh: &crate::bvh::BvhData, rays: &[Ray], closest: bool, packets: bool) -> Vec<Counters> {
     let b = kdray_shared::bvh::Bvh { nodes: Parts::one(&bvh.nodes), tris: Parts::one(kdray_shared::bvh::TriWords::cast(&bvh.tris)) };
+    fn packet<Q: Query + Copy>(b: &kdray_shared::bvh::Bvh, c: &[Ray], s: &mut Counters) {
+        let mut r = [Ray::default(); 2 * PACKET];
+        r[..c.len()].copy_from_slice(c);
+        let mut q = r.map(|r| Q::new(&r));
+        if !kdray_shared::bvh::traverse_packet(b, &r, &mut q, s) {
+            r.iter().zip(&mut q).for_each(|(r, q)| kdray_shared::bvh::traverse(b, r, q, s));
+        }
+    }
+    if packets {
+        return rays
+            .par_chunks(2 * PACKET)
+            .flat_map_iter(|c| {
+                let mut s = Counters::default();
+                if closest {
+                    packet::<Closest>(&b, c, &mut s);
+                } else {
+                    packet::<AnyHit>(&b, c, &mut s);
+                }
+                [s, Counters::default()].into_iter().take(c.len().div_ceil(PACKET))
+            })
+            .collect();
+    }
     rays.par_chunks(PACKET)
         .map(|c| {
             let mut s = Counters::default();

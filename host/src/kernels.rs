@@ -12,7 +12,7 @@ use kdray_shared::kdtree::{KdNode, KdTree, LeafRef, PacketTraversal, Traversal, 
 use kdray_shared::query::{AnyHit, Answer, Closest, Query};
 use kdray_shared::brute::BruteForce;
 use kdray_shared::aabb::Aabb;
-use kdray_shared::bvh::{Bvh, BvhNode, TriWords};
+use kdray_shared::bvh::{Bvh, BvhNode, TriWords, BVH_PACKET};
 use kdray_shared::parts;
 use kdray_shared::trace::{self, Brute, Kd, Method, Wide};
 use kdray_shared::photon::{self, HashGrid, KdCells, PhotonWord, SortedPhotons};
@@ -24,7 +24,7 @@ use std::borrow::Cow;
 use std::marker::PhantomData;
 
 /// A query whose answers a kernel stores: closest hit (`Hit`) or any hit (`u32` flags).
-pub trait QueryKind: Query + BruteForce + Answer<Out: Pod + Send + Sync> + Sync + 'static {
+pub trait QueryKind: Query + BruteForce + Answer<Out: Pod + Send + Sync> + Copy + Sync + 'static {
     /// Entry-point prefix (`closest`, `any`).
     const PREFIX: &'static str;
 }
@@ -112,7 +112,7 @@ impl<'a> View<'a> for Bvh<'a> {
 }
 
 /// How a trace kernel finds hits: brute force, a kd traversal one ray per thread or four, or
-/// the wide BVH.
+/// the wide BVH one ray per thread or four.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub enum TraceMethod {
     /// Every triangle for every ray (the tree is not used).
@@ -124,6 +124,9 @@ pub enum TraceMethod {
     Packet(kdray_shared::kdtree::Algorithm),
     /// The compressed 8-wide BVH, one ray per thread.
     Bvh,
+    /// The compressed 8-wide BVH in packets: four rays per thread (natively
+    /// `trace::trace_bvh_packet`, two threads' rays as one packet of eight; on the GPU one by one).
+    BvhPacket,
 }
 
 /// Closest-hit or any-hit queries for `params.count` rays (`trace::trace` / `trace::trace_packet`).
@@ -164,6 +167,24 @@ fn run_packets<'a, T: PacketTraversal, Q: QueryKind>(k: &Trace<'a, Q>, ts: std::
     }
 }
 
+/// The BVH's packets natively: two work items' rays (`BVH_PACKET` each) as one packet of eight
+/// lanes (one AVX register) where both items are in `ts`, else the item's alone.
+fn run_bvh_packets<'a, Q: QueryKind>(k: &Trace<'a, Q>, ts: std::ops::Range<u32>) {
+    const W: u32 = BVH_PACKET as u32;
+    // SAFETY: as `run_trace`; item t writes only out[4t..4t+4].
+    let (rays, bvh, mut out) = unsafe { (k.rays.host(), Bvh::view(&k.scene, Aabb { min: k.params.bounds_min, max: k.params.bounds_max }), k.out.host_store()) };
+    let mut t = ts.start;
+    while t < ts.end {
+        if t + 1 < ts.end {
+            trace::trace_bvh_packet::<Q, HostStore<'a, Q::Out>, { 2 * BVH_PACKET }>(t * W, &k.params, rays, &bvh, &mut out);
+            t += 2;
+        } else {
+            trace::trace_bvh_packet::<Q, HostStore<'a, Q::Out>, BVH_PACKET>(t * W, &k.params, rays, &bvh, &mut out);
+            t += 1;
+        }
+    }
+}
+
 struct Pick<'s, Q>(bool, PhantomData<&'s Q>);
 impl<'s, Q: QueryKind> WithTraversal for Pick<'s, Q> {
     type Out = TraceRun<'s, Q>;
@@ -186,6 +207,7 @@ impl<'a, Q: QueryKind> Trace<'a, Q> {
             TraceMethod::Single(a) => (false, with_traversal(a, Pick::<'a, Q>(false, PhantomData))),
             TraceMethod::Packet(a) => (true, with_traversal(a, Pick::<'a, Q>(true, PhantomData))),
             TraceMethod::Bvh => (false, run_trace::<Wide, Q>),
+            TraceMethod::BvhPacket => (true, run_bvh_packets::<Q>),
         };
         Trace { params, rays, scene, out, entry: format!("{}_{}", Q::PREFIX, method.suffix()), packet, cpu }
     }
@@ -199,6 +221,7 @@ impl TraceMethod {
             TraceMethod::Single(a) => kernel_suffix(a),
             TraceMethod::Packet(a) => format!("packet_{}", kernel_suffix(a)),
             TraceMethod::Bvh => "bvh".into(),
+            TraceMethod::BvhPacket => "packet_bvh".into(),
         }
     }
 }
@@ -229,6 +252,8 @@ impl<Q: QueryKind> Kernel for Trace<'_, Q> {
     }
     fn threads(&self) -> u32 {
         if self.packet {
+            // Four rays per item for either structure's packets.
+            const _: () = assert!(PACKET == BVH_PACKET);
             self.params.count.div_ceil(PACKET as u32)
         } else {
             self.params.count
@@ -1228,7 +1253,7 @@ impl<'a> TracePhotons<'a> {
             TraceMethod::Brute => run_photons::<Brute>,
             TraceMethod::Single(a) => kdray_shared::kdtree::with_traversal(a, PickPhotons(PhantomData)),
             TraceMethod::Bvh => run_photons::<Wide>,
-            TraceMethod::Packet(_) => return None,
+            TraceMethod::Packet(_) | TraceMethod::BvhPacket => return None,
         };
         Some(TracePhotons { params, lights, scene, materials, photons, counter, entry: format!("{}_{}", Self::PREFIX, method.suffix()), cpu })
     }
@@ -1334,7 +1359,7 @@ impl<'a> TracePaths<'a> {
             TraceMethod::Brute => run_paths::<Brute>,
             TraceMethod::Single(a) => kdray_shared::kdtree::with_traversal(a, PickPaths(PhantomData)),
             TraceMethod::Bvh => run_paths::<Wide>,
-            TraceMethod::Packet(_) => return None,
+            TraceMethod::Packet(_) | TraceMethod::BvhPacket => return None,
         };
         Some(TracePaths { params, scene_box, scene, materials, lights, rays, paths, primary_hits, entry: format!("{}_{}", Self::PREFIX, method.suffix()), cpu })
     }
@@ -1414,7 +1439,7 @@ impl<'a> MarkEdges<'a> {
         let (entry, cpu): (&'static str, MarkRun<'a>) = match method {
             TraceMethod::Brute => ("edge_points_brute", run_marks::<Brute>),
             TraceMethod::Single(_) | TraceMethod::Packet(_) => ("edge_points_kd", run_marks::<Kd<kdray_shared::kdtree::Full>>),
-            TraceMethod::Bvh => ("edge_points_bvh", run_marks::<Wide>),
+            TraceMethod::Bvh | TraceMethod::BvhPacket => ("edge_points_bvh", run_marks::<Wide>),
         };
         MarkEdges { params, scene, open_edges, rays, paths, entry, cpu }
     }

@@ -313,7 +313,8 @@ impl<'r> Tracer<'r> {
                 ]
             }
             (Structure::Brute, _, _) => vec![Box::new(Trace::<Q>::new(TraceMethod::Brute, params, rays, scene(), out))],
-            (Structure::Bvh, _, _) => vec![Box::new(Trace::<Q>::new(TraceMethod::Bvh, params, rays, scene(), out))],
+            (Structure::Bvh, Grouping::Single, _) => vec![Box::new(Trace::<Q>::new(TraceMethod::Bvh, params, rays, scene(), out))],
+            (Structure::Bvh, Grouping::Packet4, _) => vec![Box::new(Trace::<Q>::new(TraceMethod::BvhPacket, params, rays, scene(), out))],
             (Structure::KdTree, Grouping::Single, _) => vec![Box::new(Trace::<Q>::new(TraceMethod::Single(accel.traversal), params, rays, scene(), out))],
             (Structure::KdTree, Grouping::Packet4, _) => vec![Box::new(Trace::<Q>::new(TraceMethod::Packet(accel.traversal), params, rays, scene(), out))],
         })

@@ -40,7 +40,7 @@ __all__ = ["Scene", "NoGpuError", "INVALID_ID", "devices", "device_name", "TRAVE
 INVALID_ID: int = _native.MISS
 
 #: The traversals ``cast_rays`` and ``test_occlusions`` take (``shortstack:N``, N = 1..8,
-#: and ``+packets`` after a kd traversal also work).
+#: and ``+packets`` after a kd traversal or ``bvh`` also work).
 TRAVERSALS = ("shortstack", "stack", "restart", "pushdown", "bvh", "brute")
 
 ArrayLike = Union[np.ndarray, Sequence]

@@ -370,7 +370,7 @@ def test_bad_input():
         (lambda: scene.cast_rays(rays, device=0), TypeError, "device"),
         (lambda: scene.cast_rays(rays, device="gpu:99"), kdray.NoGpuError, "no GPU adapter"),
         (lambda: scene.cast_rays(rays, traversal="octree"), ValueError, "traversal: unknown traversal 'octree'"),
-        (lambda: scene.test_occlusions(rays, traversal="bvh+packets"), ValueError, "traversal"),
+        (lambda: scene.test_occlusions(rays, traversal="brute+packets"), ValueError, "traversal"),
         (lambda: scene.render(16), ValueError, "no lights"),
         (lambda: kdray.Scene.from_file("cornell").render(0), ValueError, "width: 0"),
         (lambda: kdray.Scene.from_file("cornell").render(16, integrator="radiosity"), ValueError, "integrator"),

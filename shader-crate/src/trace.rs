@@ -1,5 +1,6 @@
 //! Closest-hit and any-hit entry points: one per way of finding hits (brute force, each kd
-//! traversal, four-ray packets, the decomposed pipeline's three steps, the wide BVH). All share
+//! traversal, four-ray packets, the decomposed pipeline's three steps, the wide BVH one ray or
+//! four per thread). All share
 //! the binding names `params`, `rays`, `tris`, `nodes`, `prims` and (but `traverse_leaves`)
 //! `out`; the decomposed pipeline adds `lists` and `status`; brute force does not use
 //! `nodes`/`prims`; the BVH binds `bvh` and `bvh_tris` instead of `tris`, `nodes`, `prims`.
@@ -9,7 +10,7 @@
 //! SPIR-V otherwise), the other kernels the same.
 use kdray_shared::kdtree::{Full, KdNode, LeafRef, PushDown, Restart, Short};
 use kdray_shared::query::{AnyHit, Closest, Prims};
-use kdray_shared::bvh::{Bvh, BvhNode, TriWords};
+use kdray_shared::bvh::{Bvh, BvhNode, TriWords, BVH_PACKET};
 use kdray_shared::trace::{self, Brute, Kd, Wide};
 use kdray_shared::{Hit, Ray, TraceParams, Triangle};
 use crate::parts;
@@ -51,9 +52,10 @@ macro_rules! trace_kernel {
     };
 }
 
-/// The BVH's entry point for `$query` (`trace::trace::<Wide, $query>`).
+/// The BVH's entry point for `$query`: `trace::trace::<Wide, $query>` for one ray per thread,
+/// or for each of four (the GPU side of `bvh+packets`).
 macro_rules! bvh_kernel {
-    ($name:ident, $query:ident, $out:ty) => {
+    ($name:ident, $query:ident, $out:ty, $packet:literal) => {
         #[spirv(compute(threads(64)))]
         pub fn $name(
             #[spirv(global_invocation_id)] id: UVec3,
@@ -70,7 +72,18 @@ macro_rules! bvh_kernel {
             #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] out: &mut [$out],
         ) {
             let bvh = Bvh { nodes: parts(split[0], bvh, bvh1, bvh2), tris: parts(split[1], bvh_tris, bvh_tris1, bvh_tris2) };
-            trace::trace::<Wide, $query, _>(crate::item(id, groups), params, rays, &bvh, out);
+            if $packet {
+                // A thread's four rays one by one: the packet walk is the CPU's (see
+                // `Accel::BVH_PACKETS`).
+                let first = crate::item(id, groups) * BVH_PACKET as u32;
+                let mut l = 0;
+                while l < BVH_PACKET as u32 {
+                    trace::trace::<Wide, $query, _>(first + l, params, rays, &bvh, out);
+                    l += 1;
+                }
+            } else {
+                trace::trace::<Wide, $query, _>(crate::item(id, groups), params, rays, &bvh, out);
+            }
         }
     };
 }
@@ -78,8 +91,12 @@ macro_rules! bvh_kernel {
 /// The closest-hit and any-hit entry points of one method.
 macro_rules! trace_kernels {
     ($closest:ident, $any:ident, trace_wide) => {
-        bvh_kernel!($closest, Closest, Hit);
-        bvh_kernel!($any, AnyHit, u32);
+        bvh_kernel!($closest, Closest, Hit, false);
+        bvh_kernel!($any, AnyHit, u32, false);
+    };
+    ($closest:ident, $any:ident, trace_wide_packet) => {
+        bvh_kernel!($closest, Closest, Hit, true);
+        bvh_kernel!($any, AnyHit, u32, true);
     };
     ($closest:ident, $any:ident, $f:ident, $t:ty) => {
         trace_kernel!($closest, Closest, Hit, $f, $t);
@@ -105,6 +122,8 @@ trace_kernels!(closest_packet_stack, any_packet_stack, trace_packet, Full);
 trace_kernels!(closest_packet_restart, any_packet_restart, trace_packet, Restart);
 trace_kernels!(closest_packet_pushdown, any_packet_pushdown, trace_packet, PushDown);
 trace_kernels!(closest_packet_shortstack3, any_packet_shortstack3, trace_packet, Short<3>);
+// The BVH, four rays per thread (natively, `bvh::traverse_packet`'s packets).
+trace_kernels!(closest_packet_bvh, any_packet_bvh, trace_wide_packet);
 
 /// Decomposed pipeline, step 1 (`trace::traverse_leaves`).
 #[spirv(compute(threads(64)))]

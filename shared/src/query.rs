@@ -65,6 +65,7 @@ impl<Q: Query> Visitor for Q {
 
 /// Closest-hit query: the nearest hit in the ray's interval (ties keep the lower primitive
 /// index).
+#[derive(Copy, Clone)]
 pub struct Closest {
     /// Best hit so far (`Hit::NONE` if none).
     pub hit: Hit,
@@ -103,6 +104,7 @@ impl Query for Closest {
 }
 
 /// Any-hit query: whether the ray hits any triangle in its interval.
+#[derive(Copy, Clone)]
 pub struct AnyHit {
     /// Whether a hit was found.
     pub found: bool,

@@ -113,7 +113,7 @@ pub fn trace_packet<T: PacketTraversal, Q: Query + Answer, O: Store<Q::Out> + ?S
 ) {
     let first = i * PACKET as u32;
     if first < p.count {
-        let r = packet_rays(p, rays, first);
+        let r = packet_rays::<PACKET>(p, rays, first);
         let mut qs = [Q::new(&r[0]), Q::new(&r[1]), Q::new(&r[2]), Q::new(&r[3])];
         T::run_packet(t, &r, &mut qs, &mut NoStats);
         let mut l = 0;
@@ -126,14 +126,52 @@ pub fn trace_packet<T: PacketTraversal, Q: Query + Answer, O: Store<Q::Out> + ?S
     }
 }
 
-/// Rays `first..first + 4`; past the end of the batch, invalid rays (misses, never written).
+/// Rays `first..first + W` as one packet through the wide BVH (`bvh::traverse_packet`), or one
+/// by one where it declines them; rays past the end of the batch are invalid (misses, never
+/// written). The native runtime's `bvh+packets`: eight rays (two work items) where it has both
+/// items, else four (the GPU kernel traces each item's four rays one by one).
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+pub fn trace_bvh_packet<Q: Query + Answer + Copy, O: Store<Q::Out> + ?Sized, const W: usize>(
+    first: u32,
+    p: &TraceParams,
+    rays: &[Ray],
+    bvh: &Bvh,
+    out: &mut O,
+) {
+    if first < p.count {
+        let r = packet_rays::<W>(p, rays, first);
+        let mut qs = [Q::new(&r[0]); W];
+        let mut l = 1;
+        while l < W {
+            qs[l] = Q::new(&r[l]);
+            l += 1;
+        }
+        if !crate::bvh::traverse_packet(bvh, &r, &mut qs, &mut NoStats) {
+            let mut l = 0;
+            while l < W {
+                crate::bvh::traverse(bvh, &r[l], &mut qs[l], &mut NoStats);
+                l += 1;
+            }
+        }
+        let mut l = 0;
+        while l < W as u32 {
+            if first + l < p.count {
+                out.store((first + l) as usize, qs[l as usize].answer());
+            }
+            l += 1;
+        }
+    }
+}
+
+/// Rays `first..first + W`; past the end of the batch, invalid rays (misses, never written).
 /// (A function returning the array: written inline, the packet kernels' closest-hit primary
 /// rays ran 5–7 % slower on the H100 — one local copy fewer in the SPIR-V, otherwise the same.)
 #[inline(always)]
-fn packet_rays(p: &TraceParams, rays: &[Ray], first: u32) -> [Ray; PACKET] {
-    let mut r = [Ray::default(); PACKET];
+fn packet_rays<const W: usize>(p: &TraceParams, rays: &[Ray], first: u32) -> [Ray; W] {
+    let mut r = [Ray::default(); W];
     let mut l = 0;
-    while l < PACKET as u32 {
+    while l < W as u32 {
         if first + l < p.count {
             r[l as usize] = rays[(first + l) as usize];
         }

@@ -190,7 +190,8 @@ pub enum Command {
         /// shortstack:3, the default with --packets).
         #[arg(long)]
         traversal: Option<String>,
-        /// Trace rays in packets of four (kd traversals; incoherent packets go ray by ray).
+        /// Trace rays in packets (bvh: eight natively, on the GPU four rays per thread one by
+        /// one; kd traversals: four, incoherent packets ray by ray).
         #[arg(long)]
         packets: bool,
         /// `monolithic` (one kernel per query) or `decomposed` (traverse → leaf lists →
@@ -739,7 +740,7 @@ fn render_accel(traversal: Option<&str>, packets: bool, pipeline: PipelineArg, l
             if !packets {
                 return Ok(accel);
             }
-            accel.with_packets().ok_or_else(|| anyhow::anyhow!("--packets applies to the kd traversals, not '{}'", accel.name()))
+            accel.with_packets().ok_or_else(|| anyhow::anyhow!("--packets applies to bvh and the kd traversals, not '{}'", accel.name()))
         }
     }
 }

@@ -152,7 +152,7 @@ impl<'a> Bed<'a> {
     /// natively, and checks its answers against the oracle sample and the reference.
     pub fn measure(&self, set: &RaySet, accel: Accel) -> Result<Row> {
         let counts = if accel.needs_bvh() {
-            analysis::bvh_counts(&self.bvh, &set.rays, set.closest)
+            analysis::bvh_counts(&self.bvh, &set.rays, set.closest, accel.is_packet())
         } else {
             analysis::counts(&self.scene.triangles, self.tree, accel, &set.rays, set.closest)?
         };
@@ -202,7 +202,7 @@ impl<'a> Bed<'a> {
         let n = set.rays.len();
         let per_ray = |f: fn(&Counters) -> u32| counts.iter().map(|c| f(c) as f64).sum::<f64>() / n.max(1) as f64;
         let mut notes = vec![spread_text];
-        if accel.is_packet() {
+        if accel.is_packet() && accel.needs_tree() {
             let coherent = analysis::coherent_packets(&set.rays);
             notes.push(format!("{:.1} % of packets coherent", 100.0 * coherent as f64 / n.div_ceil(4).max(1) as f64));
         }

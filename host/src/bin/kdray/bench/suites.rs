@@ -212,7 +212,7 @@ fn dump_set(o: &Options, bed: &Bed, set: &RaySet) -> Result<()> {
     }
 }
 
-const HORN_ROWS: [(&str, Accel); 8] = [
+const HORN_ROWS: [(&str, Accel); 9] = [
     ("full stack (baseline)", Accel::kd(Algorithm::Stack)),
     ("kd-restart", Accel::kd(Algorithm::Restart)),
     ("+ packets", Accel::packet(Algorithm::Restart)),
@@ -221,6 +221,7 @@ const HORN_ROWS: [(&str, Accel); 8] = [
     ("push-down, single rays", Accel::kd(Algorithm::PushDown)),
     ("short-stack (3), single rays", Accel::kd(Algorithm::ShortStack(3))),
     ("compressed 8-wide BVH", Accel::BVH),
+    ("compressed 8-wide BVH, packets", Accel::BVH_PACKETS),
 ];
 
 /// Horn et al. 2007, Table 1: Mrays/s of the cumulative variants for primary (PS) and shadow

@@ -30,6 +30,9 @@
 //!   ray's `t_min`) by more than the rounding of both distances (`widened`), so a triangle at
 //!   the same `t` with a lower index (the tie rule) is still tested;
 //! * every loop is bounded by the node count; invalid rays (`Ray::is_valid`) are misses.
+pub mod packet;
+pub use packet::{traverse_packet, BVH_PACKET};
+
 use crate::aabb::{intersect_box, inv_dir, Aabb};
 use crate::pod::Triangle;
 use crate::query::{Near, Query};
@@ -137,6 +140,35 @@ impl BvhNode {
             [o[0] + st[0] * lo[0] as f32, o[1] + st[1] * lo[1] as f32, o[2] + st[2] * lo[2] as f32],
             [o[0] + st[0] * hi[0] as f32, o[1] + st[1] * hi[1] as f32, o[2] + st[2] * hi[2] as f32],
         )
+    }
+
+    /// Every slot's box as stored (`child_box` of slots 0..8): lower and upper corners per
+    /// axis. Natively with AVX, eight slots per instruction (the same exact values).
+    #[inline(always)]
+    pub fn child_boxes(&self) -> ([[f32; BVH_WIDTH]; 3], [[f32; BVH_WIDTH]; 3]) {
+        let o = self.origin();
+        let st = self.steps();
+        let words = [
+            (self.lo_x_y.x, self.lo_x_y.y),
+            (self.lo_x_y.z, self.lo_x_y.w),
+            (self.lo_z_hi_x.x, self.lo_z_hi_x.y),
+            (self.lo_z_hi_x.z, self.lo_z_hi_x.w),
+            (self.hi_y_z.x, self.hi_y_z.y),
+            (self.hi_y_z.z, self.hi_y_z.w),
+        ];
+        let mut c = [[0.0f32; BVH_WIDTH]; 6];
+        let mut k = 0;
+        while k < 6 {
+            let a = k % 3;
+            let mut s = 0;
+            while s < BVH_WIDTH {
+                // Exact: a power of two times a byte, added to a multiple of it (module rules).
+                c[k][s] = o[a] + st[a] * byte_of(words[k].0, words[k].1, s as u32) as f32;
+                s += 1;
+            }
+            k += 1;
+        }
+        ([c[0], c[1], c[2]], [c[3], c[4], c[5]])
     }
 }
 

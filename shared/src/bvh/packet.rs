@@ -1,0 +1,208 @@
+//! Rays traversed together through the compressed wide BVH, `W` per packet (Wald et al. 2001's
+//! packets over Ylitie et al.'s nodes; Embree's packet kernels do the same over its own): each
+//! node is fetched and decoded once per packet and each of its child boxes tested against every
+//! lane at once, lanes held in `[f32; W]` arrays that the compiler keeps in vector registers
+//! (eight lanes, one AVX register, in the native runtime). Written once for every width.
+//!
+//! The CPU's walk: a GPU already runs neighbouring rays in lockstep across threads, and this
+//! walk's box test relies on correctly rounded division, which Vulkan does not promise (OpFDiv
+//! may be 2.5 ulp off); the GPU kernel of `bvh+packets` traces its four rays one by one with the
+//! single-ray walk. (Tried on lavapipe, the packet kernel also lost the answers of lanes after
+//! the first: a compiler problem not tracked down.)
+//!
+//! A packet goes together unless a valid ray has a direction component too small to invert
+//! (`traverse_packet` then returns `false` before testing anything, and the caller traces the
+//! rays one by one). Lanes may point into different octants: each lane takes its own near and
+//! far planes, and children are visited in the first valid lane's octant order (the single-ray
+//! walk's order for it), roughly front to back for a coherent packet.
+//!
+//! Exactness: per lane, a child is culled only by `aabb::intersect_box`'s slab test of its
+//! stored box (reconstructed exactly) against the lane's interval widened as the single-ray walk
+//! widens it (`widened`) — the test the single-ray walk falls back to where its fast form's bound
+//! does not hold. So no box holding a triangle whose computed hit could answer the lane's query
+//! is culled, every such triangle is tested with the lane's own query, and as answers do not
+//! depend on the order triangles are tested in (closest hit: the nearest, ties to the lower
+//! index; any hit: whether one exists), each lane's answer is the single-ray walk's, bit for bit.
+//! Every loop is bounded by the node count (a packet enters each node at most once).
+use super::{widened, Bvh, SlotBits, BVH_WIDTH, MAX_BVH_DEPTH, META_EMPTY};
+use crate::aabb::inv_dir;
+use crate::math::{gamma, max_num, min_num};
+use crate::query::Query;
+use crate::ray::Ray;
+use crate::stats::Stats;
+use crate::triangle::ShearedRay;
+use core::mem::MaybeUninit;
+
+/// Rays per work item of `bvh+packets`: the native runtime traces two items' rays as one packet
+/// of eight where it can, the GPU each item's four one by one.
+pub const BVH_PACKET: usize = 4;
+
+/// Stack capacity: a node pushes at most `BVH_WIDTH` children, and the entries below a node
+/// are its ancestors' siblings, so a tree of depth `MAX_BVH_DEPTH` never needs more.
+const STACK: usize = BVH_WIDTH * MAX_BVH_DEPTH;
+
+/// Far-plane widening of the slab test (`aabb::slab`'s).
+const FAR: f32 = 1.0 + 2.0 * gamma(3);
+
+/// Traverses `rays` together for `q` (lane l's query answers ray l) and returns `true`, or
+/// returns `false` at once, having tested nothing, for a packet with a valid ray whose
+/// direction has a component too small to invert: the caller then traverses the rays one by
+/// one. Invalid rays (`Ray::is_valid`) are misses.
+#[inline(always)]
+pub fn traverse_packet<Q: Query, S: Stats, const W: usize>(bvh: &Bvh, rays: &[Ray; W], q: &mut [Q; W], stats: &mut S) -> bool {
+    let mut sheared = [ShearedRay::default(); W];
+    let mut o = [[0.0f32; W]; 3];
+    let mut inv = [[0.0f32; W]; 3];
+    let mut inv_dmax = [0.0f32; W];
+    let mut t_min = [0.0f32; W];
+    let mut active = 0u32;
+    let mut together = true;
+    // The first valid ray's octant (bit 2: x < 0, bit 1: y < 0, bit 0: z < 0): the child
+    // order; 8 until a valid ray sets it.
+    let mut octant = 8u32;
+    // No return inside the loops (as `traverse`): flags end them.
+    let mut l = 0;
+    while l < W {
+        let ray = &rays[l];
+        if let Some(r) = ShearedRay::new(ray) {
+            let d = ray.dir;
+            let id = inv_dir(d);
+            together &= !(id[0].is_infinite() || id[1].is_infinite() || id[2].is_infinite());
+            if octant == 8 {
+                octant = ((id[0] < 0.0) as u32) << 2 | ((id[1] < 0.0) as u32) << 1 | (id[2] < 0.0) as u32;
+            }
+            sheared[l] = r;
+            let mut a = 0;
+            while a < 3 {
+                o[a][l] = ray.origin[a];
+                inv[a][l] = id[a];
+                a += 1;
+            }
+            inv_dmax[l] = 1.0 / max_num(max_num(d[0].abs(), d[1].abs()), d[2].abs());
+            t_min[l] = ray.t_min;
+            active |= 1 << l;
+        }
+        l += 1;
+    }
+    if !together {
+        return false;
+    }
+    let n_nodes = bvh.nodes.len() as u32;
+    let n_tris = bvh.tris.len() as u32;
+    if active == 0 || n_nodes == 0 {
+        return true;
+    }
+    let oct_inv = 7 - octant;
+    // Pending nodes: index and the lanes whose intervals overlapped its box. Not initialised
+    // (2 KiB a packet otherwise): entries below `sp` are written before read.
+    let mut stack = [MaybeUninit::<[u32; 2]>::uninit(); STACK];
+    let mut sp = 0usize;
+    let mut entry = [0u32, active];
+    // Every step enters at most one node, and a packet enters each node at most once.
+    let max_steps = n_nodes.min(u32::MAX - 1) + 1;
+    let mut steps = 0u32;
+    while steps < max_steps {
+        steps += 1;
+        // The entry's lanes whose queries are still open.
+        let mut mask = 0u32;
+        let mut l = 0;
+        while l < W {
+            if entry[1] & (1 << l) != 0 && q[l].open() {
+                mask |= 1 << l;
+            }
+            l += 1;
+        }
+        if entry[0] >= n_nodes {
+            // A corrupt index (the host validates trees): the walk ends.
+            mask = 0;
+            steps = max_steps;
+        }
+        if mask != 0 {
+            // SAFETY: entry[0] < n_nodes, checked above.
+            let node = unsafe { bvh.nodes.get_unchecked(entry[0] as usize) };
+            stats.node();
+            let mut t0 = [0.0f32; W];
+            let mut t1 = [0.0f32; W];
+            let mut l = 0;
+            while l < W {
+                let (a, b) = widened(t_min[l], q[l].bound(), &node, inv_dmax[l]);
+                t0[l] = a;
+                t1[l] = b;
+                l += 1;
+            }
+            let bits = SlotBits::new(&node, oct_inv);
+            let (lo, hi) = node.child_boxes();
+            // Lanes per slot, in the octant's visiting order (j = slot ^ oct_inv; highest first).
+            let mut lanes = [0u32; BVH_WIDTH];
+            let mut j = 0u32;
+            while j < BVH_WIDTH as u32 {
+                let s = j ^ oct_inv;
+                if node.meta(s) != META_EMPTY {
+                    let si = s as usize;
+                    let mut m = 0u32;
+                    let mut l = 0;
+                    while l < W {
+                        // Per axis the distances to both planes; the nearer is the near plane
+                        // (each lane's own sign), the farther is widened as `aabb::slab`'s. No
+                        // NaN: finite planes, origins and reciprocals; t0, t1 not NaN.
+                        let (x0, x1) = ((lo[0][si] - o[0][l]) * inv[0][l], (hi[0][si] - o[0][l]) * inv[0][l]);
+                        let (y0, y1) = ((lo[1][si] - o[1][l]) * inv[1][l], (hi[1][si] - o[1][l]) * inv[1][l]);
+                        let (z0, z1) = ((lo[2][si] - o[2][l]) * inv[2][l], (hi[2][si] - o[2][l]) * inv[2][l]);
+                        let near = max_num(max_num(min_num(x0, x1), min_num(y0, y1)), max_num(min_num(z0, z1), t0[l]));
+                        let far = min_num(min_num(max_num(x0, x1) * FAR, max_num(y0, y1) * FAR), min_num(max_num(z0, z1) * FAR, t1[l]));
+                        if near <= far {
+                            m |= 1 << l;
+                        }
+                        l += 1;
+                    }
+                    lanes[j as usize] = m & mask;
+                }
+                j += 1;
+            }
+            // Leaves first, each with its own lanes; then the child nodes, nearest on top.
+            let imask = node.imask();
+            let mut j = 0u32;
+            while j < BVH_WIDTH as u32 {
+                let s = j ^ oct_inv;
+                let m = lanes[j as usize];
+                if m != 0 && imask & (1 << s) == 0 {
+                    stats.leaf();
+                    let mut tris = bits.get(s);
+                    while tris != 0 {
+                        let k = node.tri_base() + tris.trailing_zeros();
+                        tris &= tris - 1;
+                        if k < n_tris {
+                            // SAFETY: k < n_tris, checked above.
+                            let tri = unsafe { bvh.tris.get_unchecked(k as usize) }.triangle();
+                            let mut l = 0;
+                            while l < W {
+                                if m & (1 << l) != 0 && q[l].open() {
+                                    q[l].test(tri._pad, &tri, &sheared[l], t_min[l], stats);
+                                }
+                                l += 1;
+                            }
+                        } else {
+                            // A corrupt index: the walk ends.
+                            tris = 0;
+                            steps = max_steps;
+                        }
+                    }
+                }
+                if m != 0 && imask & (1 << s) != 0 && sp < STACK {
+                    let index = node.child_base() + (imask & ((1u32 << s) - 1)).count_ones();
+                    stack[sp] = MaybeUninit::new([index, m]);
+                    sp += 1;
+                }
+                j += 1;
+            }
+        }
+        if sp == 0 {
+            steps = max_steps;
+        } else if steps < max_steps {
+            sp -= 1;
+            // SAFETY: entry sp < the pushes' count was written by the push that made it.
+            entry = unsafe { stack[sp].assume_init() };
+        }
+    }
+    true
+}
