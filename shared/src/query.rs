@@ -7,7 +7,7 @@ use crate::parts::Parts;
 use crate::pod::{Hit, Triangle};
 use crate::ray::Ray;
 use crate::stats::Stats;
-use crate::triangle::{intersect_triangle, ShearedRay};
+use crate::triangle::{intersect_triangle, ShearedRay, TriHit};
 
 /// What leaves refer to: a primitive index list (a leaf holds `prims[first..first + count]`)
 /// and the triangles those indices name.
@@ -34,8 +34,17 @@ pub trait Visitor {
 pub trait Query {
     /// Nothing found yet on `ray`.
     fn new(ray: &Ray) -> Self;
-    /// Tests triangle `prim`.
-    fn test<S: Stats>(&mut self, prim: u32, tri: &Triangle, r: &ShearedRay, t_min: f32, stats: &mut S);
+    /// Tests triangle `prim`: the watertight test over [`t_min`, `bound()`], then `accept`.
+    #[inline(always)]
+    fn test<S: Stats>(&mut self, prim: u32, tri: &Triangle, r: &ShearedRay, t_min: f32, stats: &mut S) {
+        stats.tri();
+        if let Some(h) = intersect_triangle(r, tri.v0, tri.v1, tri.v2, t_min, self.bound()) {
+            self.accept(prim, h);
+        }
+    }
+    /// Takes `h`, the test's hit of triangle `prim` within [t_min, `bound()`], into the answer
+    /// (`test`'s second half; packets test a triangle for all lanes at once and call it).
+    fn accept(&mut self, prim: u32, h: TriHit);
     /// Whether a further triangle can still change the answer.
     fn open(&self) -> bool;
     /// Whether nothing beyond `t` can change the answer.
@@ -79,14 +88,11 @@ impl Query for Closest {
         Closest { hit: Hit::NONE, t_max: ray.t_max }
     }
     #[inline(always)]
-    fn test<S: Stats>(&mut self, p: u32, tri: &Triangle, r: &ShearedRay, t_min: f32, stats: &mut S) {
-        stats.tri();
-        if let Some(h) = intersect_triangle(r, tri.v0, tri.v1, tri.v2, t_min, self.t_max) {
-            // Ties in t keep the lower primitive index, as the brute-force oracle does.
-            if !self.hit.is_hit() || h.t < self.hit.t || (h.t == self.hit.t && p < self.hit.prim) {
-                self.hit = Hit { t: h.t, prim: p, b1: h.b1, b2: h.b2 };
-                self.t_max = h.t;
-            }
+    fn accept(&mut self, p: u32, h: TriHit) {
+        // Ties in t keep the lower primitive index, as the brute-force oracle does.
+        if !self.hit.is_hit() || h.t < self.hit.t || (h.t == self.hit.t && p < self.hit.prim) {
+            self.hit = Hit { t: h.t, prim: p, b1: h.b1, b2: h.b2 };
+            self.t_max = h.t;
         }
     }
     #[inline(always)]
@@ -118,11 +124,8 @@ impl Query for AnyHit {
         AnyHit { found: false, t_max: ray.t_max }
     }
     #[inline(always)]
-    fn test<S: Stats>(&mut self, _p: u32, tri: &Triangle, r: &ShearedRay, t_min: f32, stats: &mut S) {
-        stats.tri();
-        if intersect_triangle(r, tri.v0, tri.v1, tri.v2, t_min, self.t_max).is_some() {
-            self.found = true;
-        }
+    fn accept(&mut self, _p: u32, _h: TriHit) {
+        self.found = true;
     }
     #[inline(always)]
     fn open(&self) -> bool {

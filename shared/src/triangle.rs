@@ -67,10 +67,118 @@ impl ShearedRay {
     /// Vertex relative to the origin, sheared (and multiplied by dz): (x, y, z-unsheared).
     #[inline(always)]
     fn transform(&self, v: [f32; 3]) -> [f32; 3] {
-        let a = [v[0] - self.origin[0], v[1] - self.origin[1], v[2] - self.origin[2]];
-        let p = permute(a, self.kz);
-        [fma(p[0], self.dz, -(self.dx * p[2])), fma(p[1], self.dz, -(self.dy * p[2])), p[2]]
+        sheared_vertex(self.origin, self.kz, self.dx, self.dy, self.dz, v)
     }
+}
+
+/// `ShearedRay::transform` of `v` for the ray with these constants.
+#[inline(always)]
+fn sheared_vertex(origin: [f32; 3], kz: u32, dx: f32, dy: f32, dz: f32, v: [f32; 3]) -> [f32; 3] {
+    let a = [v[0] - origin[0], v[1] - origin[1], v[2] - origin[2]];
+    let p = permute(a, kz);
+    [fma(p[0], dz, -(dx * p[2])), fma(p[1], dz, -(dy * p[2])), p[2]]
+}
+
+/// The edge functions of the sheared vertices `a`, `b`, `c` (the barycentric numerators of v0,
+/// v1, v2), each with the sign of its exact value.
+#[inline(always)]
+fn edges(a: [f32; 3], b: [f32; 3], c: [f32; 3]) -> [f32; 3] {
+    [diff_of_products(c[0], b[1], c[1], b[0]), diff_of_products(a[0], c[1], a[1], c[0]), diff_of_products(b[0], a[1], b[1], a[0])]
+}
+
+/// Whether the edge functions have mixed signs (the ray passes beside the triangle).
+#[inline(always)]
+fn beside(e: [f32; 3]) -> bool {
+    (e[0] < 0.0 || e[1] < 0.0 || e[2] < 0.0) && (e[0] > 0.0 || e[1] > 0.0 || e[2] > 0.0)
+}
+
+/// The hit's ray parameter from the edge functions `e` (summing to `det`) and the sheared
+/// vertices' unsheared z.
+#[inline(always)]
+fn hit_t(e: [f32; 3], det: f32, az: f32, bz: f32, cz: f32, dz: f32, scale: f32) -> f32 {
+    let tt = fma(e[0], az, fma(e[1], bz, e[2] * cz));
+    tt / (det * dz) * scale
+}
+
+/// `ShearedRay`s of `W` rays, a field per array (lanes side by side, as vector registers hold
+/// them): the input of `intersect_triangle_lanes`.
+#[derive(Copy, Clone)]
+pub struct ShearedLanes<const W: usize> {
+    /// Origins, per axis.
+    pub origin: [[f32; W]; 3],
+    /// `ShearedRay::kz` per lane.
+    pub kz: [u32; W],
+    /// `ShearedRay::dx` per lane.
+    pub dx: [f32; W],
+    /// `ShearedRay::dy` per lane.
+    pub dy: [f32; W],
+    /// `ShearedRay::dz` per lane.
+    pub dz: [f32; W],
+    /// `ShearedRay::scale` per lane.
+    pub scale: [f32; W],
+}
+
+impl<const W: usize> Default for ShearedLanes<W> {
+    fn default() -> Self {
+        // Lanes never set answer nonsense: callers mask them out.
+        ShearedLanes { origin: [[0.0; W]; 3], kz: [2; W], dx: [0.0; W], dy: [0.0; W], dz: [0.0; W], scale: [0.0; W] }
+    }
+}
+
+impl<const W: usize> ShearedLanes<W> {
+    /// Lane `l` becomes `r`.
+    #[inline(always)]
+    pub fn set(&mut self, l: usize, r: &ShearedRay) {
+        let mut a = 0;
+        while a < 3 {
+            self.origin[a][l] = r.origin[a];
+            a += 1;
+        }
+        self.kz[l] = r.kz;
+        self.dx[l] = r.dx;
+        self.dy[l] = r.dy;
+        self.dz[l] = r.dz;
+        self.scale[l] = r.scale;
+    }
+}
+
+/// `intersect_triangle` for every lane at once, without branches (a compiler turns the lane
+/// loop into vector instructions): the same operations on the same values, so for each lane
+/// the same hit or miss and the same `t`, `b1`, `b2` bit for bit. Returns the lanes that hit
+/// (bit l) and writes their hits into `t`, `b1`, `b2` (other lanes' entries are meaningless).
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+pub fn intersect_triangle_lanes<const W: usize>(
+    r: &ShearedLanes<W>,
+    v0: [f32; 3],
+    v1: [f32; 3],
+    v2: [f32; 3],
+    t_min: &[f32; W],
+    t_max: &[f32; W],
+    t: &mut [f32; W],
+    b1: &mut [f32; W],
+    b2: &mut [f32; W],
+) -> u32 {
+    let mut hits = 0u32;
+    let mut l = 0;
+    while l < W {
+        let o = [r.origin[0][l], r.origin[1][l], r.origin[2][l]];
+        let a = sheared_vertex(o, r.kz[l], r.dx[l], r.dy[l], r.dz[l], v0);
+        let b = sheared_vertex(o, r.kz[l], r.dx[l], r.dy[l], r.dz[l], v1);
+        let c = sheared_vertex(o, r.kz[l], r.dx[l], r.dy[l], r.dz[l], v2);
+        let e = edges(a, b, c);
+        let det = e[0] + e[1] + e[2];
+        let tl = hit_t(e, det, a[2], b[2], c[2], r.dz[l], r.scale[l]);
+        let inv_det = 1.0 / det;
+        t[l] = tl;
+        b1[l] = e[1] * inv_det;
+        b2[l] = e[2] * inv_det;
+        // NaN fails both comparisons: a miss, as in `intersect_triangle`.
+        let hit = !beside(e) & (det != 0.0) & (tl >= t_min[l]) & (tl <= t_max[l]);
+        hits |= (hit as u32) << l;
+        l += 1;
+    }
+    hits
 }
 
 /// `v`'s coordinates along the axes after `kz`, after that, and `kz` (the rotation that makes
@@ -108,22 +216,94 @@ pub fn intersect_triangle(
     let a = r.transform(v0);
     let b = r.transform(v1);
     let c = r.transform(v2);
-    let u = diff_of_products(c[0], b[1], c[1], b[0]);
-    let v = diff_of_products(a[0], c[1], a[1], c[0]);
-    let w = diff_of_products(b[0], a[1], b[1], a[0]);
-    if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
+    let e = edges(a, b, c);
+    if beside(e) {
         return None;
     }
-    let det = u + v + w;
+    let det = e[0] + e[1] + e[2];
     if det == 0.0 {
         return None;
     }
-    let tt = fma(u, a[2], fma(v, b[2], w * c[2]));
-    let t = tt / (det * r.dz) * r.scale;
+    let t = hit_t(e, det, a[2], b[2], c[2], r.dz, r.scale);
     // NaN fails both comparisons: a miss.
     if !(t >= t_min && t <= t_max) {
         return None;
     }
     let inv_det = 1.0 / det;
-    Some(TriHit { t, b1: v * inv_det, b2: w * inv_det })
+    Some(TriHit { t, b1: e[1] * inv_det, b2: e[2] * inv_det })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rng::Rng;
+
+    /// All lanes at once give each lane's one-ray answer bit for bit: random triangles (large,
+    /// thin, degenerate, on a grid so rays pass through shared edges and vertices) and rays in
+    /// every direction, with intervals that cut hits off at either end.
+    #[test]
+    fn lanes_give_the_one_ray_test_bit_for_bit() {
+        const W: usize = 8;
+        let mut rng = Rng::new(3, 1);
+        let (mut hits, mut cases) = (0, 0);
+        for i in 0..40_000u32 {
+            let f = |rng: &mut Rng, s: f32| (rng.next_f32() * 2.0 - 1.0) * s;
+            // On a coarse grid every few cases: shared coordinates, exact zeros.
+            let grid = i % 4 == 0;
+            let q = |x: f32| if grid { (x * 2.0).round() * 0.5 } else { x };
+            let mut v = [[0.0f32; 3]; 3];
+            for vert in v.iter_mut() {
+                *vert = [q(f(&mut rng, 2.0)), q(f(&mut rng, 2.0)), q(f(&mut rng, 2.0))];
+            }
+            if i % 9 == 0 {
+                v[2] = v[1]; // degenerate
+            }
+            let mut rays = [Ray::default(); W];
+            let mut lanes = ShearedLanes::<W>::default();
+            let (mut t_min, mut t_max) = ([0.0f32; W], [0.0f32; W]);
+            let mut valid = 0u32;
+            for l in 0..W {
+                let o = [q(f(&mut rng, 4.0)), q(f(&mut rng, 4.0)), q(f(&mut rng, 4.0))];
+                // Mostly towards the triangle (a vertex, an edge's midpoint or inside).
+                let k = rng.next_u32() % 4;
+                let target = match k {
+                    0 => v[0],
+                    1 => [(v[0][0] + v[1][0]) * 0.5, (v[0][1] + v[1][1]) * 0.5, (v[0][2] + v[1][2]) * 0.5],
+                    2 => [(v[0][0] + v[1][0] + v[2][0]) / 3.0, (v[0][1] + v[1][1] + v[2][1]) / 3.0, (v[0][2] + v[1][2] + v[2][2]) / 3.0],
+                    _ => [f(&mut rng, 2.0), f(&mut rng, 2.0), f(&mut rng, 2.0)],
+                };
+                let d = [target[0] - o[0], target[1] - o[1], target[2] - o[2]];
+                let mut tmin = if l % 3 == 0 { rng.next_f32() } else { 0.0 };
+                let mut tmax = if l % 2 == 0 { f32::INFINITY } else { tmin + rng.next_f32() * 1.5 };
+                // Some intervals end, or start, exactly at the hit.
+                if let Some(h) = ShearedRay::new(&Ray::new(o, d, 0.0, f32::INFINITY)).and_then(|r| intersect_triangle(&r, v[0], v[1], v[2], 0.0, f32::INFINITY)) {
+                    match l % 4 {
+                        1 => (tmin, tmax) = (0.0, h.t),
+                        3 => (tmin, tmax) = (h.t, f32::INFINITY),
+                        _ => {}
+                    }
+                }
+                rays[l] = Ray::new(o, d, tmin, tmax);
+                if let Some(r) = ShearedRay::new(&rays[l]) {
+                    lanes.set(l, &r);
+                    valid |= 1 << l;
+                }
+                t_min[l] = tmin;
+                t_max[l] = tmax;
+            }
+            let (mut t, mut b1, mut b2) = ([0.0f32; W], [0.0f32; W], [0.0f32; W]);
+            let got = valid & intersect_triangle_lanes(&lanes, v[0], v[1], v[2], &t_min, &t_max, &mut t, &mut b1, &mut b2);
+            for l in 0..W {
+                if valid & (1 << l) == 0 {
+                    continue;
+                }
+                cases += 1;
+                let one = intersect_triangle(&ShearedRay::new(&rays[l]).unwrap(), v[0], v[1], v[2], t_min[l], t_max[l]);
+                let lane = (got & (1 << l) != 0).then(|| TriHit { t: t[l], b1: b1[l], b2: b2[l] });
+                assert_eq!(lane.map(|h| (h.t.to_bits(), h.b1.to_bits(), h.b2.to_bits())), one.map(|h| (h.t.to_bits(), h.b1.to_bits(), h.b2.to_bits())), "case {i}, lane {l}: {:?}", rays[l]);
+                hits += one.is_some() as u32;
+            }
+        }
+        assert!(hits > cases / 10 && hits < cases * 9 / 10, "{hits} hits of {cases}");
+    }
 }

@@ -160,11 +160,23 @@ impl BvhNode {
         let mut k = 0;
         while k < 6 {
             let a = k % 3;
-            let mut s = 0;
-            while s < BVH_WIDTH {
-                // Exact: a power of two times a byte, added to a multiple of it (module rules).
-                c[k][s] = o[a] + st[a] * byte_of(words[k].0, words[k].1, s as u32) as f32;
-                s += 1;
+            #[cfg(all(target_arch = "x86_64", target_feature = "avx"))]
+            // SAFETY: the cfg guarantees AVX and SSE4.1. The same product and sum per slot as
+            // the loop below, eight slots at once.
+            unsafe {
+                use core::arch::x86_64::*;
+                let v = _mm_cvtsi64_si128(((words[k].1 as u64) << 32 | words[k].0 as u64) as i64);
+                let q = _mm256_cvtepi32_ps(_mm256_set_m128i(_mm_cvtepu8_epi32(_mm_srli_si128::<4>(v)), _mm_cvtepu8_epi32(v)));
+                _mm256_storeu_ps(c[k].as_mut_ptr(), _mm256_add_ps(_mm256_set1_ps(o[a]), _mm256_mul_ps(_mm256_set1_ps(st[a]), q)));
+            }
+            #[cfg(not(all(target_arch = "x86_64", target_feature = "avx")))]
+            {
+                let mut s = 0;
+                while s < BVH_WIDTH {
+                    // Exact: a power of two times a byte, added to a multiple of it (module rules).
+                    c[k][s] = o[a] + st[a] * byte_of(words[k].0, words[k].1, s as u32) as f32;
+                    s += 1;
+                }
             }
             k += 1;
         }
@@ -559,7 +571,8 @@ mod tests {
     use super::*;
     use crate::rng::Rng;
 
-    /// The native eight-wide child test gives the scalar one's mask bit for bit, on random
+    /// The native eight-wide child test gives the scalar one's mask bit for bit (and the native
+    /// eight-wide box decoding the scalar one's boxes), on random
     /// nodes (any bytes: empty and inverted boxes, every meta byte) and rays in every octant,
     /// with intervals that end inside the boxes, at infinity, and equal distances (zero slack,
     /// bytes shared by neighbouring slots).
@@ -593,6 +606,12 @@ mod tests {
             let slack = if i % 5 == 0 { 0.0 } else { rng.next_f32() * 1e-3 };
             let t_min = if i % 7 == 0 { 0.0 } else { f(&mut rng, 1.0) };
             let t_max = if i % 4 == 0 { f32::INFINITY } else { t_min + rng.next_f32() * 2.0 };
+            // All eight boxes at once are the boxes one by one.
+            let (lo, hi) = node.child_boxes();
+            for s in 0..BVH_WIDTH {
+                let (l1, h1) = node.child_box(s as u32);
+                assert_eq!(([lo[0][s], lo[1][s], lo[2][s]], [hi[0][s], hi[1][s], hi[2][s]]), (l1, h1), "case {i}, slot {s}");
+            }
             let scalar = fast_children(&node, &r, adj_inv, adj_o, slack, t_min, t_max);
             assert_eq!(fast_children_x8(&node, &r, adj_inv, adj_o, slack, t_min, t_max), scalar, "case {i}");
             hits += (scalar != 0) as u32;

@@ -22,7 +22,9 @@
 //! does not hold. So no box holding a triangle whose computed hit could answer the lane's query
 //! is culled, every such triangle is tested with the lane's own query, and as answers do not
 //! depend on the order triangles are tested in (closest hit: the nearest, ties to the lower
-//! index; any hit: whether one exists), each lane's answer is the single-ray walk's, bit for bit.
+//! index; any hit: whether one exists), each lane's answer is the single-ray walk's, bit for bit
+//! (a leaf triangle is tested for all lanes at once by `triangle::intersect_triangle_lanes`,
+//! the same operations as the one-ray test, and its hits offered to each lane's query).
 //! Every loop is bounded by the node count (a packet enters each node at most once).
 use super::{widened, Bvh, SlotBits, BVH_WIDTH, MAX_BVH_DEPTH, META_EMPTY};
 use crate::aabb::inv_dir;
@@ -30,7 +32,7 @@ use crate::math::{gamma, max_num, min_num};
 use crate::query::Query;
 use crate::ray::Ray;
 use crate::stats::Stats;
-use crate::triangle::ShearedRay;
+use crate::triangle::{intersect_triangle_lanes, ShearedLanes, ShearedRay, TriHit};
 use core::mem::MaybeUninit;
 
 /// Rays per work item of `bvh+packets`: the native runtime traces two items' rays as one packet
@@ -50,7 +52,7 @@ const FAR: f32 = 1.0 + 2.0 * gamma(3);
 /// one. Invalid rays (`Ray::is_valid`) are misses.
 #[inline(always)]
 pub fn traverse_packet<Q: Query, S: Stats, const W: usize>(bvh: &Bvh, rays: &[Ray; W], q: &mut [Q; W], stats: &mut S) -> bool {
-    let mut sheared = [ShearedRay::default(); W];
+    let mut sheared = ShearedLanes::<W>::default();
     let mut o = [[0.0f32; W]; 3];
     let mut inv = [[0.0f32; W]; 3];
     let mut inv_dmax = [0.0f32; W];
@@ -71,7 +73,7 @@ pub fn traverse_packet<Q: Query, S: Stats, const W: usize>(bvh: &Bvh, rays: &[Ra
             if octant == 8 {
                 octant = ((id[0] < 0.0) as u32) << 2 | ((id[1] < 0.0) as u32) << 1 | (id[2] < 0.0) as u32;
             }
-            sheared[l] = r;
+            sheared.set(l, &r);
             let mut a = 0;
             while a < 3 {
                 o[a][l] = ray.origin[a];
@@ -148,8 +150,11 @@ pub fn traverse_packet<Q: Query, S: Stats, const W: usize>(bvh: &Bvh, rays: &[Ra
                         let (x0, x1) = ((lo[0][si] - o[0][l]) * inv[0][l], (hi[0][si] - o[0][l]) * inv[0][l]);
                         let (y0, y1) = ((lo[1][si] - o[1][l]) * inv[1][l], (hi[1][si] - o[1][l]) * inv[1][l]);
                         let (z0, z1) = ((lo[2][si] - o[2][l]) * inv[2][l], (hi[2][si] - o[2][l]) * inv[2][l]);
+                        // (Widening the smallest far distance is widening each: rounding is
+                        // monotonic.)
                         let near = max_num(max_num(min_num(x0, x1), min_num(y0, y1)), max_num(min_num(z0, z1), t0[l]));
-                        let far = min_num(min_num(max_num(x0, x1) * FAR, max_num(y0, y1) * FAR), min_num(max_num(z0, z1) * FAR, t1[l]));
+                        let far = min_num(min_num(max_num(x0, x1), max_num(y0, y1)), max_num(z0, z1)) * FAR;
+                        let far = min_num(far, t1[l]);
                         if near <= far {
                             m |= 1 << l;
                         }
@@ -174,12 +179,25 @@ pub fn traverse_packet<Q: Query, S: Stats, const W: usize>(bvh: &Bvh, rays: &[Ra
                         if k < n_tris {
                             // SAFETY: k < n_tris, checked above.
                             let tri = unsafe { bvh.tris.get_unchecked(k as usize) }.triangle();
+                            // Every lane's test at once (`Query::test` split in two: the
+                            // watertight test, then `accept` for the lanes that hit).
+                            let mut bound = [0.0f32; W];
+                            let mut open = 0u32;
                             let mut l = 0;
                             while l < W {
+                                bound[l] = q[l].bound();
                                 if m & (1 << l) != 0 && q[l].open() {
-                                    q[l].test(tri._pad, &tri, &sheared[l], t_min[l], stats);
+                                    open |= 1 << l;
+                                    stats.tri();
                                 }
                                 l += 1;
+                            }
+                            let (mut t, mut b1, mut b2) = ([0.0f32; W], [0.0f32; W], [0.0f32; W]);
+                            let mut hit = open & intersect_triangle_lanes(&sheared, tri.v0, tri.v1, tri.v2, &t_min, &bound, &mut t, &mut b1, &mut b2);
+                            while hit != 0 {
+                                let l = hit.trailing_zeros() as usize;
+                                hit &= hit - 1;
+                                q[l].accept(tri._pad, TriHit { t: t[l], b1: b1[l], b2: b2[l] });
                             }
                         } else {
                             // A corrupt index: the walk ends.
