@@ -86,6 +86,7 @@ fn check_hits(name: &str, s: &Scene, b: &BvhData, rays: &[Ray]) {
     let oracle_any = cpu.any_hits(Accel::BRUTE, rays).unwrap();
     common::assert_matches_oracle(&format!("{name}: native"), &cpu, Accel::BVH, rays, &oracle, &oracle_any);
     common::assert_matches_oracle(&format!("{name}: native"), &cpu, Accel::BVH_PACKETS, rays, &oracle, &oracle_any);
+    common::assert_packets_match_single(&format!("{name}: native"), &cpu, rays);
     if let Some(g) = common::gpu() {
         let gpu = Tracer::new(g, s, None).unwrap().with_bvh(b).unwrap();
         // The packets: exactly the GPU's one-ray walk.

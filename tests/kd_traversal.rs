@@ -77,9 +77,10 @@ fn check_on(name: &str, scene: &Scene, tree: &KdTreeData, rays: &[Ray], hard: us
     let oracle = cpu.closest_hits(Accel::BRUTE, rays).unwrap();
     let oracle_any = cpu.any_hits(Accel::BRUTE, rays).unwrap();
     // The wide BVH, natively: bit-identical to the oracle, one ray at a time and in packets
-    // (the hard cases together, then random rays in mixed octants).
+    // (as given: packets of nearby origins go together; and every ray in a bundle of its own).
     common::assert_matches_oracle(&format!("{name}: CPU"), &cpu, Accel::BVH, rays, &oracle, &oracle_any);
     common::assert_matches_oracle(&format!("{name}: CPU"), &cpu, Accel::BVH_PACKETS, rays, &oracle, &oracle_any);
+    common::assert_packets_match_single(&format!("{name}: CPU"), &cpu, rays);
     for alg in cpu_algorithms() {
         let hits = cpu.closest_hits(Accel::kd(alg), rays).unwrap();
         let bad: Vec<usize> = (0..rays.len()).filter(|&i| hits[i] != oracle[i]).collect();

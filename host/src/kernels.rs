@@ -167,15 +167,16 @@ fn run_packets<'a, T: PacketTraversal, Q: QueryKind>(k: &Trace<'a, Q>, ts: std::
     }
 }
 
-/// The BVH's packets natively: two work items' rays (`BVH_PACKET` each) as one packet of eight
-/// lanes (one AVX register) where both items are in `ts`, else the item's alone.
+/// The BVH's packets natively: the rays of work items 2k and 2k + 1 (`BVH_PACKET` each) as one
+/// packet of eight lanes (one AVX register) where both are in `ts`, else an item's alone (so
+/// packets are rays 8k..8k + 8 of the batch, whatever the split).
 fn run_bvh_packets<'a, Q: QueryKind>(k: &Trace<'a, Q>, ts: std::ops::Range<u32>) {
     const W: u32 = BVH_PACKET as u32;
     // SAFETY: as `run_trace`; item t writes only out[4t..4t+4].
     let (rays, bvh, mut out) = unsafe { (k.rays.host(), Bvh::view(&k.scene, Aabb { min: k.params.bounds_min, max: k.params.bounds_max }), k.out.host_store()) };
     let mut t = ts.start;
     while t < ts.end {
-        if t + 1 < ts.end {
+        if t % 2 == 0 && t + 1 < ts.end {
             trace::trace_bvh_packet::<Q, HostStore<'a, Q::Out>, { 2 * BVH_PACKET }>(t * W, &k.params, rays, &bvh, &mut out);
             t += 2;
         } else {

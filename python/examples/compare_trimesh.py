@@ -175,7 +175,7 @@ def main():
         print(f"\n{kind} rays: {len(rays)}")
         ref = None
         for device in devices:
-            for traversal in ["bvh", "shortstack"]:
+            for traversal in ["bvh", "bvh+packets", "shortstack"] if device == "cpu" else ["bvh", "shortstack"]:
                 hits, secs = best_of(lambda: scene.cast_rays(rays, device=device, traversal=traversal), a.reps)
                 ids, t = hits["primitive_ids"], hits["t_hit"]
                 line = f"  {'kdray ' + device + ' ' + traversal:<24} {len(rays) / secs / 1e6:9.3g} Mrays/s"

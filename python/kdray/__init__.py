@@ -40,8 +40,9 @@ __all__ = ["Scene", "NoGpuError", "INVALID_ID", "devices", "device_name", "TRAVE
 INVALID_ID: int = _native.MISS
 
 #: The traversals ``cast_rays`` and ``test_occlusions`` take (``shortstack:N``, N = 1..8,
-#: and ``+packets`` after a kd traversal or ``bvh`` also work).
-TRAVERSALS = ("shortstack", "stack", "restart", "pushdown", "bvh", "brute")
+#: and ``+packets`` after a kd traversal or ``bvh`` also work). ``auto``, the default: the
+#: BVH, natively in eight-ray SIMD packets (``bvh+packets``), on a GPU one ray per thread.
+TRAVERSALS = ("auto", "shortstack", "stack", "restart", "pushdown", "bvh", "bvh+packets", "brute")
 
 ArrayLike = Union[np.ndarray, Sequence]
 
@@ -98,8 +99,8 @@ def _finite_rows(a: np.ndarray, name: str) -> None:
 class Scene:
     """Triangles to cast rays at (and, from a scene file, materials, lights and a camera to
     render). Acceleration structures are built on first use and kept: the kd-tree (SAH, on the
-    CPU) for the kd traversals, the compressed wide BVH for ``traversal="bvh"``; each device
-    gets its own copy of the scene on first use.
+    CPU) for the kd traversals, the compressed wide BVH for ``bvh``, ``bvh+packets`` and
+    ``auto`` (the default traversal); each device gets its own copy of the scene on first use.
 
     ``Scene(vertices, faces)``: vertices (V, 3) floating point, faces (F, 3) integers indexing
     them. Faces of zero area are dropped (they can never be hit; see ``dropped_degenerate``);
@@ -217,7 +218,7 @@ class Scene:
         lo, hi = interval(t_min, "t_min"), interval(t_max, "t_max")
         return flat, batch, lo, hi
 
-    def cast_rays(self, rays: ArrayLike, *, device: str = "auto", traversal: str = "shortstack",
+    def cast_rays(self, rays: ArrayLike, *, device: str = "auto", traversal: str = "auto",
                   t_min=None, t_max=None, invalid: str = "raise") -> Dict[str, np.ndarray]:
         """The closest hit of every ray.
 
@@ -227,7 +228,8 @@ class Scene:
         (scalars or arrays broadcasting to the rays' batch shape). A ray that cannot be traced
         (a coordinate not finite, a zero direction, not 0 <= t_min <= t_max) raises
         ``ValueError`` naming it, or with ``invalid="miss"`` is a miss (rays from depth images
-        with holes).
+        with holes). ``traversal``: one of ``TRAVERSALS``; ``auto`` picks the BVH, natively
+        in eight-ray SIMD packets.
 
         Returns arrays of the rays' batch shape: ``t_hit`` (float32, inf for a miss; the hit is
         origin + t_hit · direction), ``primitive_ids`` (uint32 face numbers, ``INVALID_ID`` for
@@ -253,7 +255,7 @@ class Scene:
         }
 
     def test_occlusions(self, rays: ArrayLike, t_max=None, *, device: str = "auto",
-                        traversal: str = "shortstack", t_min=None, invalid: str = "raise") -> np.ndarray:
+                        traversal: str = "auto", t_min=None, invalid: str = "raise") -> np.ndarray:
         """Whether each ray hits anything for t in [t_min, t_max] (defaults: the rays' own
         interval with 8 columns, [0, inf) with 6): a bool array of the rays' batch shape. Any
         hit ends a ray's search, so this is faster than ``cast_rays``. ``invalid`` as there."""

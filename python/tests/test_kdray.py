@@ -75,7 +75,7 @@ def random_rays(n, seed=0, scale=2.0):
 
 # Geometry whose answers are known.
 @pytest.mark.parametrize("device", DEVICES)
-@pytest.mark.parametrize("traversal", KD_TRAVERSALS + ["bvh", "brute"])
+@pytest.mark.parametrize("traversal", KD_TRAVERSALS + ["bvh", "bvh+packets", "auto", "brute"])
 def test_cube_known_answers(device, traversal):
     scene = kdray.Scene(*cube())
     rays = grid_rays()
@@ -191,7 +191,7 @@ def test_traversals_agree_on_a_sphere(device):
     ref = scene.cast_rays(rays, device="cpu", traversal="brute")
     hit = ref["primitive_ids"] != kdray.INVALID_ID
     assert 5000 < hit.sum() < 20000
-    for traversal in KD_TRAVERSALS + ["bvh"]:
+    for traversal in KD_TRAVERSALS + ["bvh", "bvh+packets"]:
         got = scene.cast_rays(rays, device=device, traversal=traversal)
         differ = (got["primitive_ids"] != ref["primitive_ids"]).sum()
         assert differ <= 2, f"{traversal} on {device}: {differ} ids differ"  # ties at shared edges
@@ -221,7 +221,7 @@ def test_same_answers_as_the_rust_library_on_dumped_rays(dumped, device):
         got = scene.cast_rays(rays, device="cpu", traversal="stack")
         np.testing.assert_array_equal(got["primitive_ids"], ids)
         np.testing.assert_array_equal(got["t_hit"], t)
-    for traversal in KD_TRAVERSALS + ["bvh"]:
+    for traversal in KD_TRAVERSALS + ["bvh", "bvh+packets"]:
         got = scene.cast_rays(rays, device=device, traversal=traversal)
         differ = (got["primitive_ids"] != ids).sum()
         assert differ <= 2, f"{traversal} on {device}: {differ} of {len(ids)} ids differ"

@@ -88,6 +88,31 @@ pub fn random_dirs(n: usize, seed: u32) -> Vec<[f32; 3]> {
         .collect()
 }
 
+/// Each ray followed by seven more from its origin (in random directions within its interval):
+/// groups of eight that `bvh+packets` traces together natively (nearby origins), so the packet
+/// walk meets every ray of `rays`, hard cases included, in a packet of its own.
+pub fn bundles(rays: &[kdray::Ray], seed: u32) -> Vec<kdray::Ray> {
+    let dirs = random_dirs(rays.len() * 7, seed);
+    let dirs = &dirs;
+    rays.iter()
+        .enumerate()
+        .flat_map(|(i, r)| std::iter::once(*r).chain((0..7).map(move |k| kdray::Ray::new(r.origin, dirs[i * 7 + k], r.t_min, r.t_max))))
+        .collect()
+}
+
+/// `bvh+packets` gives the one-ray BVH walk's answers bit for bit on `rays` in bundles (each
+/// ray in a packet of its own: `bundles`), natively.
+pub fn assert_packets_match_single(what: &str, t: &kdray::Tracer, rays: &[kdray::Ray]) {
+    let b = bundles(rays, 77);
+    let (single, packed) = (t.closest_hits(kdray::Accel::BVH, &b).unwrap(), t.closest_hits(kdray::Accel::BVH_PACKETS, &b).unwrap());
+    if let Some(i) = (0..b.len()).find(|&i| single[i] != packed[i]) {
+        panic!("{what}: bvh+packets differs from bvh on {} of {} bundled rays; first: {:?} gives {:?}, bvh {:?}", (0..b.len()).filter(|&i| single[i] != packed[i]).count(), b.len(), b[i], packed[i], single[i]);
+    }
+    let (single, packed) = (t.any_hits(kdray::Accel::BVH, &b).unwrap(), t.any_hits(kdray::Accel::BVH_PACKETS, &b).unwrap());
+    let bad = (0..b.len()).filter(|&i| single[i] != packed[i]).count();
+    assert_eq!(bad, 0, "{what}: bvh+packets any-hit differs from bvh on {bad} of {} bundled rays", b.len());
+}
+
 /// `accel` on `t` gives the oracle's answers bit for bit (closest and any hit); the panic names
 /// the first ray that differs.
 pub fn assert_matches_oracle(what: &str, t: &kdray::Tracer, accel: kdray::Accel, rays: &[kdray::Ray], oracle: &[kdray::Hit], oracle_any: &[bool]) {
