@@ -238,3 +238,62 @@ fn stanford_bunny_from_shared_scenes() {
     let b = check_structure("bunny", &s);
     check_hits("bunny", &s, &b, &rays_for(&s, 50_000, 13));
 }
+
+/// `bvh::traverse_packet` itself: packets of rays from one point go together (it returns
+/// `true`, so the packet walk is what answers) and every lane gets the one-ray walk's answer bit
+/// for bit, closest and any hit, with eight lanes and four, invalid lanes mixed in (the first
+/// among them), and intervals that differ from lane to lane (some starting or ending inside the
+/// sphere). Packets from scattered origins are declined.
+#[test]
+fn packets_go_together_and_answer_as_one_ray_each() {
+    use kdray_shared::bvh::{traverse_packet, TriWords};
+    use kdray_shared::query::AnyHit;
+    let c = Vec3::new(1.0, 2.0, 3.0);
+    let (v, f) = common::icosphere(c, 1.5, 4);
+    let s = common::mesh_scene("sphere", &v, &f);
+    let b = bvh::try_build(&s.triangles).unwrap();
+    let view = Bvh { nodes: (&b.nodes[..]).into(), tris: TriWords::cast(&b.tris).into() };
+    let dirs = common::random_dirs(8 * 3000 + 3000, 21);
+    fn check<const W: usize>(view: &Bvh, rays: &[Ray; W]) -> bool {
+        let mut qc = rays.map(|r| Closest::new(&r));
+        let mut qa = rays.map(|r| AnyHit::new(&r));
+        let went = traverse_packet(view, rays, &mut qc, &mut NoStats);
+        assert_eq!(traverse_packet(view, rays, &mut qa, &mut NoStats), went);
+        for (l, r) in rays.iter().enumerate() {
+            let (mut c1, mut a1) = (Closest::new(r), AnyHit::new(r));
+            kdray_shared::bvh::traverse(view, r, &mut c1, &mut NoStats);
+            kdray_shared::bvh::traverse(view, r, &mut a1, &mut NoStats);
+            if went {
+                assert_eq!(qc[l].hit, c1.hit, "lane {l} of {rays:?}");
+                assert_eq!(qa[l].found, a1.found, "lane {l} of {rays:?}");
+            }
+        }
+        went
+    }
+    let mut hits = 0;
+    for k in 0..3000 {
+        let o = (c + Vec3::from(dirs[8 * 3000 + k]) * 4.0).to_array();
+        let mut rays = [Ray::default(); 8];
+        for (l, r) in rays.iter_mut().enumerate() {
+            let target = c + Vec3::from(dirs[8 * k + l]) * 1.6 - Vec3::from(o);
+            let (t_min, t_max) = match (k + l) % 4 {
+                0 => (0.0, f32::INFINITY),
+                1 => (0.5, 0.9),
+                2 => (0.0, 0.85),
+                _ => (0.95, 3.0),
+            };
+            *r = Ray::new(o, target.to_array(), t_min, t_max);
+        }
+        if k % 5 == 0 {
+            rays[k / 5 % 8] = Ray::new(o, [0.0; 3], 0.0, f32::INFINITY); // invalid: no direction
+        }
+        assert!(check(&view, &rays), "packet {k} from one point was declined");
+        let four: [Ray; 4] = rays[..4].try_into().unwrap();
+        assert!(check(&view, &four), "packet {k} of four was declined");
+        hits += rays.iter().filter(|r| { let mut q = Closest::new(r); kdray_shared::bvh::traverse(&view, r, &mut q, &mut NoStats); q.hit.is_hit() }).count();
+    }
+    assert!(hits > 3000 && hits < 20000, "{hits} hits");
+    // Scattered origins: declined (the caller traces the rays one by one).
+    let rays: [Ray; 8] = std::array::from_fn(|l| Ray::new((c + Vec3::from(dirs[l]) * 4.0).to_array(), (-Vec3::from(dirs[l])).to_array(), 0.0, f32::INFINITY));
+    assert!(!check(&view, &rays));
+}

@@ -172,7 +172,8 @@ fn run_packets<'a, T: PacketTraversal, Q: QueryKind>(k: &Trace<'a, Q>, ts: std::
 /// packets are rays 8k..8k + 8 of the batch, whatever the split).
 fn run_bvh_packets<'a, Q: QueryKind>(k: &Trace<'a, Q>, ts: std::ops::Range<u32>) {
     const W: u32 = BVH_PACKET as u32;
-    // SAFETY: as `run_trace`; item t writes only out[4t..4t+4].
+    // SAFETY: as `run_trace`; item t writes only out[4t..4t+4] (a pair t, t + 1 of `ts`:
+    // out[4t..4t+8]).
     let (rays, bvh, mut out) = unsafe { (k.rays.host(), Bvh::view(&k.scene, Aabb { min: k.params.bounds_min, max: k.params.bounds_max }), k.out.host_store()) };
     let mut t = ts.start;
     while t < ts.end {

@@ -332,17 +332,19 @@ impl Scene {
         if lo.is_some_and(|t| t.len() != n) || hi.is_some_and(|t| t.len() != n) {
             return Err(PyValueError::new_err("t_min and t_max must hold one value per ray"));
         }
-        let accel = match traversal {
-            // The fastest for the device: natively the BVH's eight-ray SIMD packets, on a GPU
-            // the BVH one ray per thread.
-            "auto" => match runtime(device).map_err(|e| py_err("device", e))?.is_native() {
-                true => Accel::BVH_PACKETS,
-                false => Accel::BVH,
-            },
-            t => Accel::parse(t).map_err(|e| py_err("traversal", e))?,
+        let parsed = match traversal {
+            "auto" => None,
+            t => Some(Accel::parse(t).map_err(|e| py_err("traversal", e))?),
         };
         let tris = &self.scene.triangles;
         py.detach(|| -> PyResult<_> {
+            // `auto`: the fastest for the device (opened here, without the GIL): natively the
+            // BVH's eight-ray SIMD packets, on a GPU the BVH one ray per thread.
+            let accel = match parsed {
+                Some(a) => a,
+                None if runtime(device).map_err(|e| py_err("device", e))?.is_native() => Accel::BVH_PACKETS,
+                None => Accel::BVH,
+            };
             let tracer = self.tracer(device, accel)?;
             // (N, 8) float32 is the library's ray layout: traced where NumPy holds it.
             let owned;

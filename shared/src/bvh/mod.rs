@@ -580,7 +580,7 @@ mod tests {
     #[test]
     fn eight_wide_child_test_is_the_scalar_one() {
         let mut rng = Rng::new(7, 0);
-        let mut word = |rng: &mut Rng, small: bool| if small { rng.next_u32() & 0x0303_0303 } else { rng.next_u32() };
+        let word = |rng: &mut Rng, small: bool| if small { rng.next_u32() & 0x0303_0303 } else { rng.next_u32() };
         let mut hits = 0u32;
         for i in 0..200_000u32 {
             let small = i % 3 == 0;

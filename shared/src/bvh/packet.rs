@@ -1,8 +1,9 @@
 //! Rays traversed together through the compressed wide BVH, `W` per packet (Wald et al. 2001's
 //! packets over Ylitie et al.'s nodes; Embree's packet kernels do the same over its own): each
 //! node is fetched and decoded once per packet and each of its child boxes tested against every
-//! lane at once, lanes held in `[f32; W]` arrays that the compiler keeps in vector registers
-//! (eight lanes, one AVX register, in the native runtime). Written once for every width.
+//! lane at once, lanes held in `[f32; W]` arrays whose loops the compiler turns into vector
+//! instructions (eight lanes, one AVX register, in the native runtime). Written once for every
+//! width up to 32.
 //!
 //! The CPU's walk: a GPU already runs neighbouring rays in lockstep across threads, and this
 //! walk's box test relies on correctly rounded division, which Vulkan does not promise (OpFDiv
@@ -48,8 +49,8 @@ const STACK: usize = BVH_WIDTH * MAX_BVH_DEPTH;
 const FAR: f32 = 1.0 + 2.0 * gamma(3);
 
 /// Traverses `rays` together for `q` (lane l's query answers ray l) and returns `true`, or
-/// returns `false` at once, having tested nothing, for a packet whose origins lie apart (more
-/// than a sixteenth of the scene's extent from the first ray's along an axis: scattered rays
+/// returns `false` at once, having tested nothing, for a packet whose valid rays' origins lie
+/// apart (more than a sixteenth of the scene's largest extent from the first's along an axis: scattered rays
 /// gain nothing from going together and lose the packet's setup) or with a valid ray whose
 /// direction has a component too small to invert: the caller then traverses the rays one by
 /// one. Invalid rays (`Ray::is_valid`) are misses.
@@ -65,21 +66,29 @@ pub fn traverse_packet<Q: Query, S: Stats, const W: usize>(bvh: &Bvh, rays: &[Ra
     // The first valid ray's octant (bit 2: x < 0, bit 1: y < 0, bit 0: z < 0): the child
     // order; 8 until a valid ray sets it.
     let mut octant = 8u32;
-    // Coherent enough to gain from going together: every origin near the first's, within a
-    // sixteenth of the scene's extent per axis (the root's grid spans the scene: 255 steps per
-    // axis). Asked first, as it is cheap: a packet of scattered rays is declined at once.
+    // Lane masks are u32.
+    const { assert!(W <= 32) };
+    // Coherent enough to gain from going together: every valid ray's origin near the first
+    // valid one's, within a sixteenth of the scene's largest extent along every axis (the
+    // root's grid spans the scene: 255 steps per axis). Asked first, as it is cheap: a packet
+    // of scattered rays is declined at once.
     if bvh.nodes.is_empty() {
         return true;
     }
     let st = bvh.nodes.get(0).steps();
     let near_origin = max_num(max_num(st[0], st[1]), st[2]) * (255.0 / 16.0);
-    let o0 = rays[0].origin;
-    let mut l = 1;
+    let mut first = W;
+    let mut l = 0;
     while l < W {
-        let mut a = 0;
-        while a < 3 {
-            together &= (rays[l].origin[a] - o0[a]).abs() <= near_origin;
-            a += 1;
+        if rays[l].is_valid() {
+            if first == W {
+                first = l;
+            }
+            let mut a = 0;
+            while a < 3 {
+                together &= (rays[l].origin[a] - rays[first].origin[a]).abs() <= near_origin;
+                a += 1;
+            }
         }
         l += 1;
     }
@@ -238,7 +247,14 @@ pub fn traverse_packet<Q: Query, S: Stats, const W: usize>(bvh: &Bvh, rays: &[Ra
                 j += 1;
             }
         }
-        if sp == 0 {
+        // Done when the stack is empty or every query has its answer (any hit found).
+        let mut open = false;
+        let mut l = 0;
+        while l < W {
+            open |= active & (1 << l) != 0 && q[l].open();
+            l += 1;
+        }
+        if sp == 0 || !open {
             steps = max_steps;
         } else if steps < max_steps {
             sp -= 1;
