@@ -70,13 +70,10 @@ pub fn counts(tris: &[Triangle], tree: &KdTreeData, accel: Accel, rays: &[Ray], 
 /// the eight (in the first of its two groups; the second gets zeros).
 pub fn bvh_counts(bvh: &crate::bvh::BvhData, rays: &[Ray], closest: bool, packets: bool) -> Vec<Counters> {
     let b = kdray_shared::bvh::Bvh { nodes: Parts::one(&bvh.nodes), tris: Parts::one(kdray_shared::bvh::TriWords::cast(&bvh.tris)) };
-    fn packet<Q: Query + Copy>(b: &kdray_shared::bvh::Bvh, c: &[Ray], s: &mut Counters) {
+    fn packet<Q: Query>(b: &kdray_shared::bvh::Bvh, c: &[Ray], s: &mut Counters) {
         let mut r = [Ray::default(); 2 * PACKET];
         r[..c.len()].copy_from_slice(c);
-        let mut q = r.map(|r| Q::new(&r));
-        if !kdray_shared::bvh::traverse_packet(b, &r, &mut q, s) {
-            r.iter().zip(&mut q).for_each(|(r, q)| kdray_shared::bvh::traverse(b, r, q, s));
-        }
+        kdray_shared::bvh::packet_or_single(b, &r, &mut r.map(|r| Q::new(&r)), s);
     }
     if packets {
         return rays

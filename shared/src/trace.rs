@@ -147,13 +147,7 @@ pub fn trace_bvh_packet<Q: Query + Answer + Copy, O: Store<Q::Out> + ?Sized, con
             qs[l] = Q::new(&r[l]);
             l += 1;
         }
-        if !crate::bvh::traverse_packet(bvh, &r, &mut qs, &mut NoStats) {
-            let mut l = 0;
-            while l < W {
-                crate::bvh::traverse(bvh, &r[l], &mut qs[l], &mut NoStats);
-                l += 1;
-            }
-        }
+        crate::bvh::packet_or_single(bvh, &r, &mut qs, &mut NoStats);
         let mut l = 0;
         while l < W as u32 {
             if first + l < p.count {

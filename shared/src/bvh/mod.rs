@@ -31,7 +31,7 @@
 //!   the same `t` with a lower index (the tie rule) is still tested;
 //! * every loop is bounded by the node count; invalid rays (`Ray::is_valid`) are misses.
 pub mod packet;
-pub use packet::{traverse_packet, BVH_PACKET};
+pub use packet::{packet_or_single, traverse_packet, BVH_PACKET};
 
 use crate::aabb::{intersect_box, inv_dir, Aabb};
 use crate::pod::Triangle;
@@ -165,8 +165,7 @@ impl BvhNode {
             // the loop below, eight slots at once.
             unsafe {
                 use core::arch::x86_64::*;
-                let v = _mm_cvtsi64_si128(((words[k].1 as u64) << 32 | words[k].0 as u64) as i64);
-                let q = _mm256_cvtepi32_ps(_mm256_set_m128i(_mm_cvtepu8_epi32(_mm_srli_si128::<4>(v)), _mm_cvtepu8_epi32(v)));
+                let q = bytes_x8(words[k].0, words[k].1);
                 _mm256_storeu_ps(c[k].as_mut_ptr(), _mm256_add_ps(_mm256_set1_ps(o[a]), _mm256_mul_ps(_mm256_set1_ps(st[a]), q)));
             }
             #[cfg(not(all(target_arch = "x86_64", target_feature = "avx")))]
@@ -354,6 +353,19 @@ fn fast_children(node: &BvhNode, r: &BoxRay, adj_inv: [f32; 3], adj_o: [f32; 3],
     child(0) | child(1) | child(2) | child(3) | child(4) | child(5) | child(6) | child(7)
 }
 
+/// The eight bytes of the word pair (`lo`, `hi`) as eight floats (byte s of the pair in lane s,
+/// as `byte_of`), natively with AVX.
+#[cfg(all(target_arch = "x86_64", target_feature = "avx"))]
+#[inline(always)]
+fn bytes_x8(lo: u32, hi: u32) -> core::arch::x86_64::__m256 {
+    use core::arch::x86_64::*;
+    // SAFETY: the cfg guarantees AVX and SSE4.1 (which AVX implies).
+    unsafe {
+        let v = _mm_cvtsi64_si128(((hi as u64) << 32 | lo as u64) as i64);
+        _mm256_cvtepi32_ps(_mm256_set_m128i(_mm_cvtepu8_epi32(_mm_srli_si128::<4>(v)), _mm_cvtepu8_epi32(v)))
+    }
+}
+
 /// `fast_children` natively on x86-64 with AVX (which FMA implies, so every build of this
 /// repository's `.cargo/config.toml`): the same multiply-adds, minima, maxima and comparison per
 /// slot, eight slots per instruction, so the same mask bit for bit (no operand is NaN, so
@@ -365,14 +377,7 @@ fn fast_children_x8(node: &BvhNode, r: &BoxRay, adj_inv: [f32; 3], adj_o: [f32; 
     use core::arch::x86_64::*;
     // SAFETY: the cfg guarantees AVX, FMA and SSE4.1 (which AVX implies).
     unsafe {
-        // The eight bytes of a word pair as eight floats.
-        let q = |lo: u32, hi: u32| {
-            let v = _mm_cvtsi64_si128(((hi as u64) << 32 | lo as u64) as i64);
-            let a = _mm_cvtepu8_epi32(v);
-            let b = _mm_cvtepu8_epi32(_mm_srli_si128::<4>(v));
-            _mm256_cvtepi32_ps(_mm256_set_m128i(b, a))
-        };
-        let plane = |w: (u32, u32), a: usize| _mm256_fmadd_ps(q(w.0, w.1), _mm256_set1_ps(adj_inv[a]), _mm256_set1_ps(adj_o[a]));
+        let plane = |w: (u32, u32), a: usize| _mm256_fmadd_ps(bytes_x8(w.0, w.1), _mm256_set1_ps(adj_inv[a]), _mm256_set1_ps(adj_o[a]));
         let pick = |lo: (u32, u32), hi: (u32, u32), neg: u32| if neg != 0 { (hi, lo) } else { (lo, hi) };
         let (nx, fx) = pick((node.lo_x_y.x, node.lo_x_y.y), (node.lo_z_hi_x.z, node.lo_z_hi_x.w), r.neg[0]);
         let (ny, fy) = pick((node.lo_x_y.z, node.lo_x_y.w), (node.hi_y_z.x, node.hi_y_z.y), r.neg[1]);

@@ -57,7 +57,6 @@ const FAR: f32 = 1.0 + 2.0 * gamma(3);
 #[inline(always)]
 pub fn traverse_packet<Q: Query, S: Stats, const W: usize>(bvh: &Bvh, rays: &[Ray; W], q: &mut [Q; W], stats: &mut S) -> bool {
     let mut sheared = ShearedLanes::<W>::default();
-    let mut o = [[0.0f32; W]; 3];
     let mut inv = [[0.0f32; W]; 3];
     let mut inv_dmax = [0.0f32; W];
     let mut t_min = [0.0f32; W];
@@ -106,10 +105,10 @@ pub fn traverse_packet<Q: Query, S: Stats, const W: usize>(bvh: &Bvh, rays: &[Ra
             if octant == 8 {
                 octant = ((id[0] < 0.0) as u32) << 2 | ((id[1] < 0.0) as u32) << 1 | (id[2] < 0.0) as u32;
             }
+            // (`sheared.origin` holds the origins the box tests need.)
             sheared.set(l, &r);
             let mut a = 0;
             while a < 3 {
-                o[a][l] = ray.origin[a];
                 inv[a][l] = id[a];
                 a += 1;
             }
@@ -180,6 +179,7 @@ pub fn traverse_packet<Q: Query, S: Stats, const W: usize>(bvh: &Bvh, rays: &[Ra
                         // Per axis the distances to both planes; the nearer is the near plane
                         // (each lane's own sign), the farther is widened as `aabb::slab`'s. No
                         // NaN: finite planes, origins and reciprocals; t0, t1 not NaN.
+                        let o = &sheared.origin;
                         let (x0, x1) = ((lo[0][si] - o[0][l]) * inv[0][l], (hi[0][si] - o[0][l]) * inv[0][l]);
                         let (y0, y1) = ((lo[1][si] - o[1][l]) * inv[1][l], (hi[1][si] - o[1][l]) * inv[1][l]);
                         let (z0, z1) = ((lo[2][si] - o[2][l]) * inv[2][l], (hi[2][si] - o[2][l]) * inv[2][l]);
@@ -263,4 +263,17 @@ pub fn traverse_packet<Q: Query, S: Stats, const W: usize>(bvh: &Bvh, rays: &[Ra
         }
     }
     true
+}
+
+/// `traverse_packet`, or where it declines the packet each ray alone (`bvh::traverse`): the
+/// rays' answers either way (the native `bvh+packets` and its counting run).
+#[inline(always)]
+pub fn packet_or_single<Q: Query, S: Stats, const W: usize>(bvh: &Bvh, rays: &[Ray; W], q: &mut [Q; W], stats: &mut S) {
+    if !traverse_packet(bvh, rays, q, stats) {
+        let mut l = 0;
+        while l < W {
+            super::traverse(bvh, &rays[l], &mut q[l], stats);
+            l += 1;
+        }
+    }
 }
