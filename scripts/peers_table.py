@@ -4,7 +4,8 @@ bench dumped, in the same run) and writes OUT.csv and OUT.md with every tracer's
 ratios, and how far the answers agree.
 
 Usage: python3 scripts/peers_table.py HORN.csv PEERS.log OUT
-  kdray: the BVH row and the fastest kd-tree row per scene and ray type (GPU timestamps);
+  kdray: the BVH row and the fastest kd-tree row per scene and ray type (GPU timestamps), and
+  the rasterised primaries' row (`raster+bvh`) where the bench measured one;
   OptiX: Mitsuba's `cuda_ad_rgb` (wall time per launch); CWBVH: the better of tinybvh's two
   builds and, for shadow rays, of its occlusion and closest-hit kernels (CUDA events).
 Only the standard library: it runs wherever the tables are.
@@ -15,13 +16,15 @@ horn, log, out = sys.argv[1], sys.argv[2], sys.argv[3]
 rows = list(csv.DictReader(open(horn)))
 text = open(log).read()
 
-kd, bvh, meta = {}, {}, {}
+kd, bvh, raster, meta = {}, {}, {}, {}
 for r in rows:
     key = (r["scene"], r["ray_type"])
     v = float(r["mrays_s_gpu_timestamps"] or r["mrays_s_wall"])
     meta[key] = (r["rays"], r["device"], r["date"], r["oracle_mismatch_rate"])
     if r["method"] == "bvh":
         bvh[key] = v
+    elif r["method"].startswith("raster+"):
+        raster[key] = v
     elif r["method"] != "brute" and v > kd.get(key, (0.0, ""))[0]:
         kd[key] = (v, r["method"])
 
@@ -42,11 +45,16 @@ for m in re.finditer(r"^(\S+)-(primary|shadow)-rays\s+(\d+)\s+(\d+)\s", text, re
 
 header = ["scene", "ray type", "rays", "kd fastest (method)", "BVH", "OptiX (Mitsuba 3)", "CWBVH (tinybvh)",
           "BVH / OptiX", "BVH / CWBVH", "kd / OptiX", "kd / CWBVH", "kdray oracle mismatch", "Mitsuba same answer", "CWBVH same hit/miss (closest-hit kernel)"]
+if raster:
+    header[7:7] = ["rasterised primaries", "raster / BVH"]
 table = []
 for key in sorted(bvh, key=lambda k: (list(bvh).index(k))):
     k, b, o, c = kd.get(key, (float("nan"), "")), bvh[key], optix.get(key, float("nan")), cwbvh.get(key, float("nan"))
-    table.append([key[0], key[1], meta[key][0], f"{k[0]:.0f} ({k[1]})", f"{b:.0f}", f"{o:.0f}", f"{c:.0f}",
-                  f"{b / o:.2f}", f"{b / c:.2f}", f"{k[0] / o:.2f}", f"{k[0] / c:.2f}", meta[key][3], agree.get(key, ""), same.get(key, "")])
+    row = [key[0], key[1], meta[key][0], f"{k[0]:.0f} ({k[1]})", f"{b:.0f}", f"{o:.0f}", f"{c:.0f}",
+           f"{b / o:.2f}", f"{b / c:.2f}", f"{k[0] / o:.2f}", f"{k[0] / c:.2f}", meta[key][3], agree.get(key, ""), same.get(key, "")]
+    if raster:
+        row[7:7] = [f"{raster[key]:.0f}", f"{raster[key] / b:.2f}"] if key in raster else ["", ""]
+    table.append(row)
 
 with open(out + ".csv", "w", newline="") as f:
     w = csv.writer(f)

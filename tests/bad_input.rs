@@ -212,6 +212,15 @@ fn cli_reports_one_error_line_and_exits_non_zero() {
     let (code, _, err) = kdray(&["render", "--size", "0"], &[]);
     assert_eq!(code, 1);
     assert!(err.starts_with("error: --size"), "{err}");
+    // Rasterised primaries: not with the photon integrator, nor with a traversal that has no
+    // rasterised kernel.
+    let (code, _, err) = kdray(&["render", "--device", "cpu", "--primary", "raster"], &[]);
+    assert_eq!((code, err.lines().count()), (1, 1), "{err}");
+    assert!(err.starts_with("error: --primary raster is for the direct and path integrators"), "{err}");
+    let args = ["render", "--device", "cpu", "--size", "8", "--integrator", "direct", "--primary", "raster", "--traversal", "restart", "--out", "/dev/null"];
+    let (code, _, err) = kdray(&args, &[]);
+    assert_eq!((code, err.lines().count()), (1, 1), "{err}");
+    assert!(err.contains("rasterised primary hits trace with the BVH or the kd-tree's full stack"), "{err}");
 }
 
 #[test]

@@ -6,7 +6,7 @@
 //! Adding a kernel: a per-item function in `shared/src/<capability>.rs`, a thin entry point in
 //! `shader-crate/src/<capability>.rs`, and a struct here with `entry`, `bindings` and `run`
 //! (see `RngFill`, the smallest).
-use crate::runtime::{read, read_split, write, Bind, Buffer, HostStore, Kernel, SplitBuffer};
+use crate::runtime::{read, read_split, write, Bind, Buffer, Draw, HostStore, Kernel, SplitBuffer};
 use bytemuck::Pod;
 use kdray_shared::kdtree::{KdNode, KdTree, LeafRef, PacketTraversal, Traversal, WithTraversal, PACKET};
 use kdray_shared::query::{AnyHit, Answer, Closest, Query};
@@ -16,9 +16,10 @@ use kdray_shared::bvh::{Bvh, BvhNode, TriWords, BVH_PACKET};
 use kdray_shared::parts;
 use kdray_shared::trace::{self, Brute, Kd, Method, Wide};
 use kdray_shared::photon::{self, HashGrid, KdCells, PhotonWord, SortedPhotons};
+use kdray_shared::raster;
 use kdray_shared::{
-    render, sort, Hit, IndexParams, ItemParams, LeafCells, Light, Material, PathState, Photon, PhotonParams, PhotonPath, Ray, RenderParams,
-    ShadeTerms, SortParams, TraceParams, Triangle,
+    render, sort, Hit, IndexParams, ItemParams, LeafCells, Light, Material, PathState, Photon, PhotonParams, PhotonPath, RasterParams, Ray,
+    RenderParams, ShadeTerms, SortParams, TraceParams, Triangle,
 };
 use std::borrow::Cow;
 use std::marker::PhantomData;
@@ -1457,6 +1458,133 @@ impl Kernel for MarkEdges<'_> {
     fn bindings(&self) -> Vec<Bind<'_>> {
         let mut b = self.scene.binds();
         b.extend([read("open_edges", self.open_edges), read("rays", self.rays), write("paths", self.paths)]);
+        b
+    }
+    fn threads(&self) -> u32 {
+        self.params.count
+    }
+    fn run(&self, t: u32) {
+        self.run_many(t..t + 1)
+    }
+    fn run_many(&self, ts: std::ops::Range<u32>) {
+        (self.cpu)(self, ts)
+    }
+}
+
+/// Draws the camera's image of the scene's triangles with a depth test into `visible`
+/// (`raster::vertex`, `raster_fragment`): per pixel, `raster::visible_value` of the triangle
+/// seen through its centre, `raster::EMPTY` where none is. The native runtime has no
+/// rasteriser: its twin marks every pixel `raster::UNKNOWN`, so that `RasterHits` traces every
+/// ray.
+pub struct RasterDraw<'a> {
+    /// The camera, its projection, the triangle count and the buffer's row length.
+    pub params: RasterParams,
+    /// The scene's triangles.
+    pub tris: &'a SplitBuffer<Triangle>,
+    /// Written: the visibility buffer, `params.row_words` × the camera's height.
+    pub visible: &'a Buffer<u32>,
+}
+
+impl Kernel for RasterDraw<'_> {
+    fn entry(&self) -> Cow<'static, str> {
+        "raster_vertex".into()
+    }
+    fn params(&self) -> &[u8] {
+        bytemuck::bytes_of(&self.params)
+    }
+    fn bindings(&self) -> Vec<Bind<'_>> {
+        let mut b: Vec<Bind> = read_split(parts::TRIS, self.tris).into();
+        b.push(write("visible", self.visible));
+        b
+    }
+    fn threads(&self) -> u32 {
+        self.params.row_words * self.params.camera.height
+    }
+    fn run(&self, t: u32) {
+        self.run_many(t..t + 1)
+    }
+    fn run_many(&self, ts: std::ops::Range<u32>) {
+        // SAFETY: called by the native runtime during the dispatch of this pass, which holds its
+        // bindings; thread t writes visible[t] only.
+        let mut out = unsafe { self.visible.host_store() };
+        for t in ts {
+            raster::unknown(t, &self.params, &mut out);
+        }
+    }
+    fn draw(&self) -> Option<Draw> {
+        let cam = &self.params.camera;
+        Some(Draw {
+            vertices: self.params.triangles * 3,
+            fragment: "raster_fragment",
+            width: cam.width,
+            height: cam.height,
+            row_words: self.params.row_words,
+            target: "visible",
+        })
+    }
+}
+
+/// A rasterised primary-hit kernel's native twin over threads `ts`.
+type RasterRun<'a> = fn(&RasterHits<'a>, std::ops::Range<u32>);
+
+fn run_raster_hits<'a, M: Method>(k: &RasterHits<'a>, ts: std::ops::Range<u32>)
+where
+    M::Accel<'a>: View<'a>,
+{
+    // SAFETY: called by the native runtime during the dispatch of this pass, which holds its
+    // bindings; thread t writes out[t] only.
+    unsafe {
+        let b = k.scene_box.host();
+        let accel = M::Accel::view(&k.scene, Aabb { min: [b[0][0], b[0][1], b[0][2]], max: [b[1][0], b[1][1], b[1][2]] });
+        let (tris, visible, mut out) = (k.scene.tris.host(), k.visible.host(), k.out.host_store());
+        for t in ts {
+            raster::primary_hit::<M, HostStore<'a, Hit>>(t, &k.params, &accel, &tris, visible, &mut out)
+        }
+    }
+}
+
+/// The closest hits of the camera's primary rays from the visibility buffer `RasterDraw` drew
+/// (`raster::primary_hit`): each pixel's candidate tested, rays without a trusted one traced by
+/// the BVH or the kd-tree's full stack.
+pub struct RasterHits<'a> {
+    /// The camera, the number of rays and the buffer's row length (as `RasterDraw`'s).
+    pub params: RasterParams,
+    /// The kd-tree's root box: min, max (`[f32; 4]` each).
+    pub scene_box: &'a Buffer<[f32; 4]>,
+    /// The scene the rays are traced against where needed.
+    pub scene: SceneBinds<'a>,
+    /// The visibility buffer.
+    pub visible: &'a Buffer<u32>,
+    /// Written: ray i's closest hit (the camera's i-th pixel, in its order).
+    pub out: &'a Buffer<Hit>,
+    entry: &'static str,
+    cpu: RasterRun<'a>,
+}
+
+impl<'a> RasterHits<'a> {
+    /// `None` for methods without a rasterised entry point (the BVH and the kd full stack
+    /// have one).
+    pub fn new(method: TraceMethod, params: RasterParams, scene_box: &'a Buffer<[f32; 4]>, scene: SceneBinds<'a>, visible: &'a Buffer<u32>, out: &'a Buffer<Hit>) -> Option<Self> {
+        let (entry, cpu): (&'static str, RasterRun<'a>) = match method {
+            TraceMethod::Bvh | TraceMethod::BvhPacket => ("primary_raster_bvh", run_raster_hits::<Wide>),
+            TraceMethod::Single(kdray_shared::kdtree::Algorithm::Stack) => ("primary_raster_stack", run_raster_hits::<Kd<kdray_shared::kdtree::Full>>),
+            _ => return None,
+        };
+        Some(RasterHits { params, scene_box, scene, visible, out, entry, cpu })
+    }
+}
+
+impl Kernel for RasterHits<'_> {
+    fn entry(&self) -> Cow<'static, str> {
+        self.entry.into()
+    }
+    fn params(&self) -> &[u8] {
+        bytemuck::bytes_of(&self.params)
+    }
+    fn bindings(&self) -> Vec<Bind<'_>> {
+        let mut b = vec![read("scene_box", self.scene_box)];
+        b.extend(self.scene.binds());
+        b.extend([read("visible", self.visible), write("out", self.out)]);
         b
     }
     fn threads(&self) -> u32 {

@@ -6,7 +6,7 @@
 use crate::accel::{Accel, Grouping, Pipeline, Structure};
 use crate::kdtree::KdTreeData;
 use crate::bvh::BvhData;
-use crate::kernels::{Fallback, IntersectListed, QueryKind, SceneBinds, StructureBinds, Trace, TraceMethod, TraverseLeaves};
+use crate::kernels::{Fallback, IntersectListed, QueryKind, RasterDraw, RasterHits, SceneBinds, StructureBinds, Trace, TraceMethod, TraverseLeaves};
 use crate::runtime::{cast, Buffer, Kernel, RawBuffer, Runtime, SplitBuffer};
 use crate::scene::Scene;
 use crate::error::{bail, Result};
@@ -14,7 +14,7 @@ use kdray_shared::aabb::Aabb;
 use kdray_shared::bvh::BvhNode;
 use kdray_shared::kdtree::{KdNode, LeafRef};
 use kdray_shared::query::{AnyHit, Closest};
-use kdray_shared::{Hit, Light, Material, Ray, TraceParams, Triangle};
+use kdray_shared::{raster, Camera, Hit, Light, Material, RasterParams, Ray, TraceParams, Triangle};
 
 /// Upper bound on ray-triangle tests of one brute-force submission.
 const MAX_TESTS_PER_SUBMIT: u64 = 1 << 30;
@@ -374,6 +374,61 @@ impl<'r> Tracer<'r> {
         }
         drop(pool);
         self.rt.alloc::<T>(label, n)
+    }
+
+    /// Parameters of the rasterised primary hits of camera `cam` (`raster`): its projection,
+    /// clipping at 10^-6 of the scene's diagonal from the eye along its axis. Fails for a
+    /// camera without pixels or whose axes do not span space.
+    pub fn raster_params(&self, cam: &Camera) -> Result<RasterParams> {
+        if !raster::can_draw(cam) {
+            bail!(InvalidInput: "the camera cannot be rasterised: a {} x {} image whose axes do not span space", cam.width, cam.height);
+        }
+        let pixels = cam.width as u64 * cam.height as u64;
+        if raster::row_words(cam.width) as u64 * cam.height as u64 > u32::MAX as u64 {
+            bail!(TooLarge: "an image of {} x {} pixels is too large to rasterise", cam.width, cam.height);
+        }
+        let b = self.scene_bounds;
+        let diagonal = (0..3).map(|k| (b.max[k] - b.min[k]) as f64).map(|e| e * e).sum::<f64>().sqrt();
+        let axis = cam.top_left.iter().map(|&c| (c as f64) * (c as f64)).sum::<f64>().sqrt();
+        let near = (1e-6 * diagonal / axis) as f32;
+        let near = if near.is_finite() && near > 0.0 { near } else { f32::MIN_POSITIVE };
+        Ok(RasterParams::new(cam, self.tri_count as u32, pixels as u32, near))
+    }
+
+    /// The passes that find camera `cam`'s primary hits by rasterisation (Horn et al. 2007):
+    /// draw the visibility buffer `visible` (`RasterDraw`; natively: every pixel unknown), then
+    /// each ray's hit from it into `out`, traced by `accel`'s structure where needed
+    /// (`RasterHits`: the BVH, or the kd-tree's full stack). `out[i]` is the camera's i-th
+    /// pixel in its order; the answers are the traversal's up to `raster`'s tie rule.
+    pub fn raster_passes<'a>(&'a self, accel: Accel, p: &RasterParams, visible: &'a Buffer<u32>, out: &'a Buffer<Hit>) -> Result<Vec<Box<dyn Kernel + 'a>>> {
+        self.check(accel)?;
+        let method = match accel.structure {
+            Structure::Bvh => TraceMethod::Bvh,
+            Structure::KdTree => TraceMethod::Single(accel.traversal),
+            Structure::Brute => TraceMethod::Brute,
+        };
+        let need = p.row_words as usize * p.camera.height as usize;
+        if visible.len() < need || out.len() < p.count as usize {
+            bail!(InvalidInput: "rasterised primary hits of {} rays need {need} visibility words and as many results; the buffers hold {} and {}", p.count, visible.len(), out.len());
+        }
+        let hits = RasterHits::new(method, *p, &self.scene_box, self.scene_binds(accel), visible, out)
+            .ok_or_else(|| crate::error::err!(InvalidInput: "rasterised primary hits trace with the BVH or the kd-tree's full stack, not '{}'", accel.name()))?;
+        Ok(vec![Box::new(RasterDraw { params: *p, tris: &self.tris, visible }), Box::new(hits)])
+    }
+
+    /// Camera `cam`'s primary hits (through pixel centres, in the camera's order) by
+    /// rasterisation, traced by `accel` where the rasteriser's answer cannot be trusted
+    /// (`raster_passes`).
+    pub fn raster_primary_hits(&self, accel: Accel, cam: &Camera) -> Result<Vec<Hit>> {
+        let p = self.raster_params(cam)?;
+        let visible = self.rt.alloc::<u32>("visibility", p.row_words as usize * cam.height as usize)?;
+        let out = self.rt.alloc::<Hit>("primary hit", p.count as usize)?;
+        let passes = self.raster_passes(accel, &p, &visible, &out)?;
+        let mut c = self.rt.begin();
+        self.rt.dispatch_all(&mut c, passes)?;
+        let pending = self.rt.read_back_of(&mut c, &out, p.count as usize)?;
+        self.rt.submit(c)?;
+        Ok(cast::<Hit>(self.rt.wait(pending)?))
     }
 
     /// The closest hit of each ray in its interval (`Hit::NONE` for a miss), found with

@@ -27,6 +27,8 @@ mod render;
 mod sort;
 #[cfg(feature = "photon")]
 mod photon;
+#[cfg(feature = "raster")]
+mod raster;
 
 #[cfg(feature = "trace")]
 pub use trace::*;
@@ -36,6 +38,8 @@ pub use render::*;
 pub use sort::*;
 #[cfg(feature = "photon")]
 pub use photon::*;
+#[cfg(feature = "raster")]
+pub use raster::*;
 
 use kdray_shared::kernel::{AtomicStore, Store};
 use kdray_shared::parts::Parts;

@@ -30,6 +30,7 @@ pub mod parts;
 pub mod photon;
 pub mod pod;
 pub mod query;
+pub mod raster;
 pub mod ray;
 pub mod render;
 pub mod rng;

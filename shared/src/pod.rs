@@ -171,6 +171,27 @@ pub struct TraceParams {
     pub _pad2: u32,
 }
 
+/// Parameters of the rasterised primary hits (`raster`): the camera, its projection and the
+/// visibility buffer's layout.
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct RasterParams {
+    /// The camera whose primary rays are resolved (and whose image is drawn).
+    pub camera: Camera,
+    /// The projection (`RasterParams::new`): rows giving, for a point q relative to the eye,
+    /// its distance along the camera's axis and its pixel coordinates times 2 / size, times
+    /// that distance (the fourth components are 0).
+    pub rows: [[f32; 4]; 3],
+    /// Rays to resolve in this dispatch (the camera's first `count`, in its order).
+    pub count: u32,
+    /// Triangles drawn (the draw has three vertices per triangle).
+    pub triangles: u32,
+    /// Words per row of the visibility buffer (`raster::row_words`).
+    pub row_words: u32,
+    /// Depth of the near clipping plane along the camera's axis, in units of `top_left`.
+    pub near: f32,
+}
+
 /// `RenderParams::flags`: camera rays through a random point of the pixel, not its centre.
 pub const RENDER_JITTER: u32 = 1;
 /// Paths end at their first diffuse hit as a gather point for the photon map (`shade`).
@@ -184,6 +205,10 @@ pub const RENDER_CONTINUE: u32 = 8;
 /// Each pixel's numbers come from its own scrambled Sobol sequence (`sampler`), sample
 /// `sample_base + s` for the dispatch's sample s, instead of independent random numbers.
 pub const RENDER_SOBOL: u32 = 16;
+/// The paths' camera rays are through the pixel centres of `camera` (no `RENDER_JITTER`) and
+/// their closest hits are given: the whole-path kernels read bounce 0's hit from
+/// `primary_hits` (written by the rasterised primary hits, `raster`) instead of tracing it.
+pub const RENDER_PRIMARY_GIVEN: u32 = 32;
 /// With `RENDER_CONTINUE`: the flags' bits from here up hold the final gather's level, the
 /// bounces from the eye path's first gather point (1, or more where a resumed path's gather
 /// point was near an edge again and resumed once more: `render::resume_level`). Each level

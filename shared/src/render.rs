@@ -10,7 +10,7 @@ use crate::math::{cosine_direction, scale3};
 use crate::parts::Parts;
 use crate::pod::{
     Hit, ItemParams, Light, Material, PathState, RenderParams, ShadeTerms, Triangle, PATH_ACTIVE, PATH_DIFFUSE_SHIFT, PATH_GATHER,
-    RENDER_CONTINUE, RENDER_JITTER, RENDER_LEVEL_SHIFT,
+    RENDER_CONTINUE, RENDER_JITTER, RENDER_LEVEL_SHIFT, RENDER_PRIMARY_GIVEN,
 };
 use crate::ray::Ray;
 use crate::rng::Rng;
@@ -169,7 +169,8 @@ pub fn rng_fill<O: Store<[u32; 4]> + ?Sized>(i: u32, p: &ItemParams, out: &mut O
 }
 
 /// Path `i` of the batch from the camera (or, with `RENDER_CONTINUE`, from its gather point by
-/// `resume`, leaving `primary_hits` alone) to its end in one item: `camera_rays`, then per
+/// `resume`, leaving `primary_hits` alone; with `RENDER_PRIMARY_GIVEN`, its first hit read from
+/// `primary_hits[i]`) to its end in one item: `camera_rays`, then per
 /// bounce (up to `p.max_bounces`) a closest-hit query by `M`, `shade::path_step`, the shadow
 /// ray's any-hit query and `shade::accumulate` — the same paths as the schedule of separate
 /// passes, without a dispatch per bounce. Leaves the path (and its gather point, if any, in
@@ -199,12 +200,17 @@ pub fn trace_path<M: Method, R, P, H>(
     // same invocation read zeros on NVIDIA's driver 580 (lavapipe read the values written).
     let resuming = p.flags & RENDER_CONTINUE != 0;
     let (mut ray, mut path) = if resuming { resume(p, &rays.load(k), &paths.load(k)) } else { camera_sample(i, p) };
+    let given = !resuming && p.flags & RENDER_PRIMARY_GIVEN != 0;
     let mut bounce = 0;
     while bounce <= p.max_bounces && path.is_active() {
-        let mut q = Closest::new(&ray);
-        M::find(accel, &ray, &mut q);
-        let hit = q.answer();
-        if bounce == 0 && !resuming {
+        let hit = if bounce == 0 && given {
+            primary_hits.load(k)
+        } else {
+            let mut q = Closest::new(&ray);
+            M::find(accel, &ray, &mut q);
+            q.answer()
+        };
+        if bounce == 0 && !resuming && !given {
             primary_hits.store(k, hit);
         }
         let (shadow, terms) = shade::path_step(p, bounce, &mut ray, &hit, &mut path, tris, materials, lights);

@@ -25,6 +25,7 @@ layout! {
     crate::pod::Light => 64,
     crate::pod::Camera => 64,
     crate::pod::TraceParams => 48,
+    crate::pod::RasterParams => 128,
     crate::pod::RenderParams => 112,
     crate::pod::PhotonParams => 80,
     crate::pod::PhotonPath => 16,

@@ -7,7 +7,7 @@
 //! binding. Pipelines and bind groups are cached; read-backs go through reused staging buffers
 //! and are waited for apart from submission.
 use crate::runtime::module::{find_entry, module_info, short_name, specialize, spirv_words, splits, validate, Slot, Splits};
-use crate::runtime::{reflect, Bind, Buffer, Commands, Kernel, Mem, Pending, PendingData, RawBuffer, Runtime};
+use crate::runtime::{reflect, Bind, Buffer, Commands, Draw, Kernel, Mem, Pending, PendingData, RawBuffer, Runtime};
 use crate::error::{bail, err, Result};
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
@@ -85,9 +85,26 @@ struct Profile {
 const MAX_PARAMS: u32 = 128;
 
 struct Pipeline {
-    pipeline: wgpu::ComputePipeline,
+    pipeline: Pipe,
     layout: wgpu::BindGroupLayout,
     info: reflect::EntryPoint,
+}
+
+/// A compute pipeline, or the render pipeline of a drawing pass (`Kernel::draw`).
+enum Pipe {
+    Compute(wgpu::ComputePipeline),
+    Render(wgpu::RenderPipeline),
+}
+
+/// The image format of a drawing pass's target (one `u32` per pixel) and of its depth buffer.
+const DRAW_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Uint;
+const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+
+/// A drawing pass's render targets of one size: the `u32` image and its depth buffer.
+struct DrawTargets {
+    image: wgpu::Texture,
+    image_view: wgpu::TextureView,
+    depth_view: wgpu::TextureView,
 }
 
 /// A recorded copy into a staging buffer and the submission that carries it.
@@ -123,6 +140,8 @@ pub struct Gpu {
     /// Created on first use: drivers compile each entry point when its pipeline is made; by
     /// entry point and the splits it is specialized for.
     pipelines: Mutex<HashMap<(String, Splits), Arc<Pipeline>>>,
+    /// Render targets of drawing passes by (width in words, height), made on first use.
+    draw_targets: Mutex<HashMap<(u32, u32), Arc<DrawTargets>>>,
     /// Bind groups by entry point, splits and buffer ids (dropped with their buffers).
     bind_groups: Mutex<HashMap<(String, Vec<u64>), wgpu::BindGroup>>,
     /// A limit below `max_binding` for splitting scene arrays (`split_arrays_above`), 0 if none.
@@ -297,6 +316,7 @@ impl Gpu {
             module,
             split_modules: Mutex::new(HashMap::new()),
             pipelines: Mutex::new(HashMap::new()),
+            draw_targets: Mutex::new(HashMap::new()),
             binding_cap: std::sync::atomic::AtomicU64::new(cap),
             bind_groups: Mutex::new(HashMap::new()),
             dead: Arc::new(Mutex::new(Vec::new())),
@@ -334,7 +354,7 @@ impl Gpu {
         Ok(module)
     }
 
-    fn pipeline(&self, name: &str, splits: &Splits) -> Result<Arc<Pipeline>> {
+    fn pipeline(&self, name: &str, splits: &Splits, draw: Option<&Draw>) -> Result<Arc<Pipeline>> {
         let mut cache = self.pipelines.lock().expect("pipeline cache");
         let key = (name.to_string(), *splits);
         if let Some(p) = cache.get(&key) {
@@ -346,12 +366,13 @@ impl Gpu {
             let similar: Vec<&str> = m.entry_points.iter().map(|e| short_name(&e.name)).filter(|e| e.starts_with(stem)).collect();
             err!(Gpu: "the SPIR-V module has no kernel '{name}' (kernels like it: {})", similar.join(", "))
         })?;
+        let visibility = if draw.is_some() { wgpu::ShaderStages::VERTEX } else { wgpu::ShaderStages::COMPUTE };
         let entries: Vec<wgpu::BindGroupLayoutEntry> = info
             .bindings
             .iter()
             .map(|b| wgpu::BindGroupLayoutEntry {
                 binding: b.binding,
-                visibility: wgpu::ShaderStages::COMPUTE,
+                visibility,
                 ty: wgpu::BindingType::Buffer {
                     ty: wgpu::BufferBindingType::Storage { read_only: b.read_only },
                     has_dynamic_offset: false,
@@ -366,14 +387,44 @@ impl Gpu {
             bind_group_layouts: &[Some(&layout)],
             immediate_size: info.push_constant_size,
         });
-        let pipeline = self.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some(name),
-            layout: Some(&pl),
-            module: &self.module_for(splits)?,
-            entry_point: Some(&info.name),
-            compilation_options: Default::default(),
-            cache: None,
-        });
+        let module = self.module_for(splits)?;
+        let pipeline = match draw {
+            None => Pipe::Compute(self.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(name),
+                layout: Some(&pl),
+                module: &module,
+                entry_point: Some(&info.name),
+                compilation_options: Default::default(),
+                cache: None,
+            })),
+            Some(d) => {
+                let fragment = find_entry(m, d.fragment)
+                    .filter(|f| f.stage == reflect::Stage::Fragment)
+                    .ok_or_else(|| err!(Gpu: "the SPIR-V module has no fragment shader '{}'", d.fragment))?;
+                Pipe::Render(self.device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                    label: Some(name),
+                    layout: Some(&pl),
+                    vertex: wgpu::VertexState { module: &module, entry_point: Some(&info.name), compilation_options: Default::default(), buffers: &[] },
+                    primitive: wgpu::PrimitiveState { topology: wgpu::PrimitiveTopology::TriangleList, cull_mode: None, ..Default::default() },
+                    depth_stencil: Some(wgpu::DepthStencilState {
+                        format: DEPTH_FORMAT,
+                        depth_write_enabled: Some(true),
+                        depth_compare: Some(wgpu::CompareFunction::Greater),
+                        stencil: Default::default(),
+                        bias: Default::default(),
+                    }),
+                    multisample: Default::default(),
+                    fragment: Some(wgpu::FragmentState {
+                        module: &module,
+                        entry_point: Some(&fragment.name),
+                        compilation_options: Default::default(),
+                        targets: &[Some(wgpu::ColorTargetState { format: DRAW_FORMAT, blend: None, write_mask: wgpu::ColorWrites::ALL })],
+                    }),
+                    multiview_mask: None,
+                    cache: None,
+                }))
+            }
+        };
         let p = Arc::new(Pipeline { pipeline, layout, info });
         cache.insert(key, p.clone());
         Ok(p)
@@ -381,7 +432,7 @@ impl Gpu {
 
     /// Creates the pipeline of entry point `name` now (the driver compiles it).
     pub fn compile(&self, name: &str) -> Result<()> {
-        self.pipeline(name, &Splits::default()).map(|_| ())
+        self.pipeline(name, &Splits::default(), None).map(|_| ())
     }
 
     /// This GPU's adapter in one line (`describe`).
@@ -504,8 +555,14 @@ impl Gpu {
     ) -> Result<()> {
         let name = k.entry();
         let host = k.bindings();
-        let p = self.pipeline(&name, &splits(&host))?;
+        let draw = k.draw();
+        let p = self.pipeline(&name, &splits(&host), draw.as_ref())?;
         let bg = self.bind_group(&p, k, &host)?;
+        let pipeline = match (&p.pipeline, draw) {
+            (Pipe::Compute(c), None) => c,
+            (Pipe::Render(r), Some(d)) => return self.record_draw(enc, k, &d, r, &bg, &host, timer),
+            _ => bail!(Gpu: "kernel {name}: drawn and dispatched both"),
+        };
         let grid = match indirect {
             None => Some(self.grid(k.threads(), k.workgroup())?),
             Some(_) => None,
@@ -518,7 +575,7 @@ impl Gpu {
                 end_of_pass_write_index: Some(2 * i + 1),
             }),
         });
-        cpass.set_pipeline(&p.pipeline);
+        cpass.set_pipeline(pipeline);
         cpass.set_bind_group(0, &bg, &[]);
         if p.info.push_constant_size > 0 {
             cpass.set_immediates(0, k.params());
@@ -529,6 +586,99 @@ impl Gpu {
             _ => {}
         }
         Ok(())
+    }
+
+    /// Records a drawing pass (`Kernel::draw`): the draw into render targets of the pass's size,
+    /// then the copy of its image into the target binding.
+    #[allow(clippy::too_many_arguments)]
+    fn record_draw(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        k: &dyn Kernel,
+        d: &Draw,
+        pipeline: &wgpu::RenderPipeline,
+        bg: &wgpu::BindGroup,
+        host: &[Bind],
+        timer: Option<(&wgpu::QuerySet, u32)>,
+    ) -> Result<()> {
+        let name = k.entry();
+        let target = host.iter().find(|h| h.name == d.target).ok_or_else(|| err!(Gpu: "kernel {name}: no binding '{}' for its image", d.target))?;
+        let max = self.limits.max_texture_dimension_2d;
+        if d.width == 0 || d.height == 0 || d.row_words < d.width || d.row_words % 64 != 0 || d.row_words > max || d.height > max {
+            bail!(TooLarge: "kernel {name}: an image of {} x {} pixels in rows of {} words cannot be drawn (this GPU draws at most {max} x {max})", d.width, d.height, d.row_words);
+        }
+        let bytes = 4 * d.row_words as u64 * d.height as u64;
+        if target.buffer.bytes() < bytes {
+            bail!(Gpu: "kernel {name}: '{}' holds {} bytes, the image {bytes}", d.target, target.buffer.bytes());
+        }
+        let dest = self.own(target.buffer)?;
+        let t = self.draw_targets(d.row_words, d.height);
+        {
+            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some(&name),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: &t.image_view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations { load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT), store: wgpu::StoreOp::Store },
+                })],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &t.depth_view,
+                    depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(0.0), store: wgpu::StoreOp::Discard }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: timer.map(|(q, i)| wgpu::RenderPassTimestampWrites {
+                    query_set: q,
+                    beginning_of_pass_write_index: Some(2 * i),
+                    end_of_pass_write_index: Some(2 * i + 1),
+                }),
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, bg, &[]);
+            // The image's own pixels only: the viewport maps the camera's frame onto them
+            // whatever the padding of the rows.
+            pass.set_viewport(0.0, 0.0, d.width as f32, d.height as f32, 0.0, 1.0);
+            pass.set_scissor_rect(0, 0, d.width, d.height);
+            if d.vertices > 0 {
+                pass.draw(0..d.vertices, 0..1);
+            }
+        }
+        enc.copy_texture_to_buffer(
+            wgpu::TexelCopyTextureInfo { texture: &t.image, mip_level: 0, origin: wgpu::Origin3d::ZERO, aspect: wgpu::TextureAspect::All },
+            wgpu::TexelCopyBufferInfo {
+                buffer: dest,
+                layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(4 * d.row_words), rows_per_image: Some(d.height) },
+            },
+            wgpu::Extent3d { width: d.row_words, height: d.height, depth_or_array_layers: 1 },
+        );
+        Ok(())
+    }
+
+    /// The render targets of drawing passes `width` × `height` pixels (made once per size).
+    fn draw_targets(&self, width: u32, height: u32) -> Arc<DrawTargets> {
+        let mut cache = self.draw_targets.lock().expect("draw targets");
+        cache
+            .entry((width, height))
+            .or_insert_with(|| {
+                let texture = |label, format, usage| {
+                    self.device.create_texture(&wgpu::TextureDescriptor {
+                        label: Some(label),
+                        size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+                        mip_level_count: 1,
+                        sample_count: 1,
+                        dimension: wgpu::TextureDimension::D2,
+                        format,
+                        usage,
+                        view_formats: &[],
+                    })
+                };
+                let image = texture("visibility", DRAW_FORMAT, wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC);
+                let depth = texture("depth", DEPTH_FORMAT, wgpu::TextureUsages::RENDER_ATTACHMENT);
+                Arc::new(DrawTargets { image_view: image.create_view(&Default::default()), image, depth_view: depth.create_view(&Default::default()) })
+            })
+            .clone()
     }
 
     /// Workgroup grid (x, y) covering `threads` threads in groups of `wg`.

@@ -16,7 +16,7 @@ use crate::tracer::{LeafLists, Tracer};
 use crate::error::{bail, Result};
 use kdray_shared::query::{AnyHit, Closest};
 use kdray_shared::rng::pcg_hash;
-use kdray_shared::{camera, Camera, Hit, PathState, Ray, RenderParams, ShadeTerms, RENDER_CONTINUE, RENDER_JITTER};
+use kdray_shared::{camera, raster, Camera, Hit, PathState, Ray, RenderParams, ShadeTerms, RENDER_CONTINUE, RENDER_JITTER, RENDER_PRIMARY_GIVEN};
 
 /// What the eye paths do.
 #[derive(Copy, Clone, Debug, PartialEq)]
@@ -35,17 +35,24 @@ pub struct PathOptions {
     pub fused: bool,
     /// Where the paths' numbers come from.
     pub sampler: SamplerKind,
+    /// Primary hits by rasterisation (`Tracer::raster_passes`; the BVH or the kd-tree's full
+    /// stack traces where the rasteriser's answer is not trusted): each sample group is one
+    /// dispatch over the whole image, every pixel sampled at the same point of its area (the
+    /// centre, or with `jitter` the group's `raster::group_offset`), and the paths continue
+    /// from the hits. The native runtime has no rasteriser and traces those rays instead
+    /// (the same image up to `raster`'s tie rule).
+    pub raster: bool,
 }
 
 impl PathOptions {
     /// Direct lighting: one sample through each pixel centre, `bounces` specular bounces.
     pub fn direct(seed: u32, bounces: u32) -> Self {
-        PathOptions { seed, bounces, diffuse_bounces: 0, spp: 1, jitter: false, fused: true, sampler: SamplerKind::Sobol }
+        PathOptions { seed, bounces, diffuse_bounces: 0, spp: 1, jitter: false, fused: true, sampler: SamplerKind::Sobol, raster: false }
     }
     /// Path tracing with next-event estimation: `spp` jittered samples, paths up to `bounces`
     /// long.
     pub fn path(seed: u32, bounces: u32, spp: u32) -> Self {
-        PathOptions { seed, bounces, diffuse_bounces: bounces, spp, jitter: true, fused: true, sampler: SamplerKind::Sobol }
+        PathOptions { seed, bounces, diffuse_bounces: bounces, spp, jitter: true, fused: true, sampler: SamplerKind::Sobol, raster: false }
     }
 }
 
@@ -146,7 +153,8 @@ pub fn with_samples(p: RenderParams, samples: u32) -> RenderParams {
 }
 
 /// Every pass of one sample group of one batch, in order, up to the paths' last bounce (the
-/// caller adds the film or the gather). Bounce 0 writes its hits into `primary_hits`. With
+/// caller adds the film or the gather). Bounce 0 writes its hits into `primary_hits`
+/// (with `RENDER_PRIMARY_GIVEN` it reads them from there instead). With
 /// `RENDER_CONTINUE` the paths resume from their gather points (`ContinuePaths`) instead of
 /// leaving the camera, and `primary_hits` stays as it is. The film is `film`.
 pub fn path_passes<'a>(t: &'a Tracer, accel: Accel, p: &RenderParams, fb: &'a FrameBuffers, film: &'a FilmBuffers) -> Result<Vec<Box<dyn Kernel + 'a>>> {
@@ -160,7 +168,9 @@ pub fn path_passes<'a>(t: &'a Tracer, accel: Accel, p: &RenderParams, fb: &'a Fr
     for bounce in 0..=p.max_bounces {
         let params = RenderParams { bounce, ..*p };
         let hits = if bounce == 0 && !resuming { &film.primary_hits } else { &fb.hits };
-        v.extend(t.query_passes::<Closest>(accel, n, &fb.rays, hits, fb.lists.as_ref())?);
+        if !(bounce == 0 && !resuming && p.flags & RENDER_PRIMARY_GIVEN != 0) {
+            v.extend(t.query_passes::<Closest>(accel, n, &fb.rays, hits, fb.lists.as_ref())?);
+        }
         v.push(Box::new(PathStep {
             params,
             rays: &fb.rays,
@@ -257,8 +267,13 @@ pub fn render_checkpointed(t: &Tracer, accel: Accel, cam: &Camera, o: &PathOptio
     let rt = t.rt;
     let start = std::time::Instant::now();
     let n = (cam.width * cam.height) as usize;
-    let b = t.batch_size(accel, n);
-    let per_dispatch = (t.batch_size(accel, b * o.spp as usize) / b).clamp(1, o.spp as usize) as u32;
+    // Rasterised primaries: one batch of the whole image, one sample per pixel a dispatch.
+    let b = if o.raster { n } else { t.batch_size(accel, n) };
+    if o.raster && (n as u64 * std::mem::size_of::<ShadeTerms>() as u64 > rt.max_binding() || n > t.batch_size(accel, n).max(1 << 22)) {
+        bail!(TooLarge: "--primary raster renders the whole image in one batch: {} x {} pixels are too many for {}", cam.width, cam.height, rt.name());
+    }
+    let per_dispatch = if o.raster { 1 } else { (t.batch_size(accel, b * o.spp as usize) / b).clamp(1, o.spp as usize) as u32 };
+    let raster_visible = if o.raster { Some(rt.alloc::<u32>("visibility", t.raster_params(cam)?.row_words as usize * cam.height as usize)?) } else { None };
     let groups = o.spp.div_ceil(per_dispatch);
     let batches: Vec<(usize, usize)> = (0..n).step_by(b).map(|f| (f, b.min(n - f))).collect();
     let work = FrameBuffers::work(t, accel, b * per_dispatch as usize)?;
@@ -278,7 +293,13 @@ pub fn render_checkpointed(t: &Tracer, accel: Accel, cam: &Camera, o: &PathOptio
             let mut c = rt.begin();
             let mut recorded = 0;
             for (&(first, count), film) in batches.iter().zip(&films) {
-                let p = RenderParams { sample_base: g * per_dispatch, ..with_samples(params(t, cam, o, first, count, g), s) };
+                let mut p = RenderParams { sample_base: g * per_dispatch, ..with_samples(params(t, cam, o, first, count, g), s) };
+                if let Some(visible) = &raster_visible {
+                    // The group's camera: every pixel's centre moved to the group's point.
+                    p.camera = raster::shifted(cam, if o.jitter { raster::group_offset(g) } else { [0.5, 0.5] });
+                    p.flags = (p.flags & !RENDER_JITTER) | RENDER_PRIMARY_GIVEN;
+                    recorded += rt.dispatch_all(&mut c, t.raster_passes(accel, &t.raster_params(&p.camera)?, visible, &film.primary_hits)?)?;
+                }
                 recorded += rt.dispatch_all(&mut c, eye_passes_into(t, accel, &p, &work, film, o.fused)?)?;
                 rt.dispatch(&mut c, &Film { params: p, paths: &work.paths, radiance: &film.radiance })?;
                 if recorded >= DISPATCHES_PER_SUBMIT {

@@ -841,7 +841,7 @@ impl GatherPoints {
 /// Eye-path parameters of pass `pass`: `o.eye_samples` jittered samples per pixel, ending at
 /// gather points.
 pub fn eye_params(t: &Tracer, cam: &Camera, o: &PhotonOptions, first: usize, count: usize, pass: u32) -> RenderParams {
-    let po = PathOptions { seed: pass_seed(o.seed ^ 0x0E7E_0E7E, pass), bounces: o.eye_bounces, diffuse_bounces: 0, spp: 1, jitter: true, fused: o.fused, sampler: o.sampler };
+    let po = PathOptions { seed: pass_seed(o.seed ^ 0x0E7E_0E7E, pass), bounces: o.eye_bounces, diffuse_bounces: 0, spp: 1, jitter: true, fused: o.fused, sampler: o.sampler, raster: false };
     let mut p = path::params(t, cam, &po, first, count, 0);
     p.seed = po.seed;
     p.sample = pass;

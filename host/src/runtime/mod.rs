@@ -345,6 +345,34 @@ pub trait Kernel: Sync {
             self.run(t);
         }
     }
+    /// A pass that draws instead of dispatching (the rasterised primary hits): on a GPU,
+    /// `entry()` is the vertex shader, run for `Draw::vertices` vertices, and the fragment
+    /// shader's one `u32` output, kept where the depth test passes, lands in the binding
+    /// `Draw::target`. Natively the pass runs its threads like any other (`run`).
+    fn draw(&self) -> Option<Draw> {
+        None
+    }
+}
+
+/// What a drawing pass draws (`Kernel::draw`): a triangle list of `vertices` vertices through
+/// the vertex shader `Kernel::entry` and the fragment shader `fragment`, with a depth test
+/// (reversed depth: nearer is larger, cleared to 0), into a `width` × `height` image of `u32`
+/// cleared to 0, which is then copied into the pass's binding named `target` in rows of
+/// `row_words` words (a multiple of 64, at least `width`).
+#[derive(Copy, Clone, Debug)]
+pub struct Draw {
+    /// Vertices drawn (three per triangle).
+    pub vertices: u32,
+    /// The fragment shader's entry point.
+    pub fragment: &'static str,
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// Words per row of the target.
+    pub row_words: u32,
+    /// The binding that receives the image (written by the copy, not by the shaders).
+    pub target: &'static str,
 }
 
 /// Recorded work of one submission.

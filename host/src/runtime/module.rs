@@ -167,7 +167,11 @@ pub fn validate(k: &dyn Kernel, host: &[Bind], info: &reflect::EntryPoint) -> Re
     if params != declared {
         bail!(Gpu: "kernel {name}: the host passes {params} bytes of parameters, the shader declares {declared}");
     }
-    if k.workgroup() != info.workgroup_size[0] || info.workgroup_size[1] != 1 || info.workgroup_size[2] != 1 {
+    let draw = k.draw();
+    if draw.is_some() != (info.stage == reflect::Stage::Vertex) {
+        bail!(Gpu: "kernel {name}: the host {} but the entry point is a {:?} shader", if draw.is_some() { "draws" } else { "dispatches" }, info.stage);
+    }
+    if draw.is_none() && (k.workgroup() != info.workgroup_size[0] || info.workgroup_size[1] != 1 || info.workgroup_size[2] != 1) {
         bail!(Gpu: "kernel {name}: the host dispatches workgroups of {}, the shader declares {:?}", k.workgroup(), info.workgroup_size);
     }
     let mut order = Vec::with_capacity(info.bindings.len());
@@ -203,7 +207,9 @@ pub fn validate(k: &dyn Kernel, host: &[Bind], info: &reflect::EntryPoint) -> Re
     // A host binding the entry point does not declare is one the shader does not use (rust-gpu
     // drops unused parameters, e.g. the kd-tree arrays of the brute-force kernels): allowed for
     // reading, an error for writing (the host would expect results that never come).
-    if let Some(extra) = host.iter().find(|h| h.access == Access::Write && !info.bindings.iter().any(|b| b.name.as_deref() == Some(h.name))) {
+    // A drawing pass's target is written by the image copy, not bound to the shaders.
+    let target = draw.map(|d| d.target);
+    if let Some(extra) = host.iter().find(|h| h.access == Access::Write && Some(h.name) != target && !info.bindings.iter().any(|b| b.name.as_deref() == Some(h.name))) {
         bail!(Gpu: "kernel {name}: the host binds '{}' for writing but the shader has no such binding", extra.name);
     }
     Ok(order)

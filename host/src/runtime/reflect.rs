@@ -1,5 +1,5 @@
 //! Minimal SPIR-V reflection: reads the module built from `shader-crate/` (rust-gpu, SPIR-V 1.5)
-//! and returns, per compute entry point, its workgroup size, the descriptor bindings it uses
+//! and returns, per compute, vertex or fragment entry point, its stage, workgroup size, the descriptor bindings it uses
 //! (set, binding, buffer kind, read-only-ness, element size, debug name) and its push-constant
 //! size. The host validates its typed kernel bindings against what the shader module declares,
 //! so a mismatch (a kernel edited on one side only) is an error naming the kernel, never a
@@ -14,20 +14,34 @@
 use crate::error::{bail, ensure, err, Context, Result};
 use std::collections::{BTreeMap, HashMap, HashSet};
 
-/// A parsed SPIR-V module: what its compute entry points declare.
+/// A parsed SPIR-V module: what its compute, vertex and fragment entry points declare.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Module {
-    /// The GLCompute and Kernel entry points, in the module's order (other execution models are
-    /// skipped).
+    /// The GLCompute, Kernel, Vertex and Fragment entry points, in the module's order (other
+    /// execution models are skipped).
     pub entry_points: Vec<EntryPoint>,
 }
 
-/// One compute entry point and the resources it uses.
+/// The pipeline stage an entry point runs in (its execution model).
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum Stage {
+    /// GLCompute or Kernel: a compute pass's kernel.
+    Compute,
+    /// A vertex shader (a drawing pass's `Kernel::entry`).
+    Vertex,
+    /// A fragment shader.
+    Fragment,
+}
+
+/// One entry point and the resources it uses.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct EntryPoint {
     /// The name in `OpEntryPoint` (rust-gpu qualifies it by its module: `family::name`).
     pub name: String,
-    /// `OpExecutionMode LocalSize` (or `OpExecutionModeId LocalSizeId` of plain `OpConstant`s).
+    /// Compute, vertex or fragment.
+    pub stage: Stage,
+    /// `OpExecutionMode LocalSize` (or `OpExecutionModeId LocalSizeId` of plain `OpConstant`s);
+    /// zeros for vertex and fragment shaders.
     pub workgroup_size: [u32; 3],
     /// Descriptor bindings used by this entry point, sorted by (set, binding).
     pub bindings: Vec<Binding>,
@@ -180,10 +194,14 @@ pub fn parse(words: &[u32]) -> Result<Module> {
 
     let mut entry_points = Vec::new();
     for (model, function, name, interface) in entries {
-        if model != 5 && model != 6 {
-            continue; // GLCompute and Kernel only
-        }
+        let stage = match model {
+            0 => Stage::Vertex,
+            4 => Stage::Fragment,
+            5 | 6 => Stage::Compute,
+            _ => continue, // GLCompute, Kernel, Vertex and Fragment only
+        };
         let workgroup_size = match local.get(&function) {
+            _ if stage != Stage::Compute => [0; 3],
             Some(LocalSize::Literal(s)) => *s,
             Some(LocalSize::Ids(ids)) => {
                 let c = |id: u32| r.consts.get(&id).copied();
@@ -221,7 +239,7 @@ pub fn parse(words: &[u32]) -> Result<Module> {
             }
         }
         bindings.sort_by_key(|b| (b.set, b.binding));
-        entry_points.push(EntryPoint { name, workgroup_size, bindings, push_constant_size });
+        entry_points.push(EntryPoint { name, stage, workgroup_size, bindings, push_constant_size });
     }
     Ok(Module { entry_points })
 }
@@ -366,7 +384,7 @@ mod tests {
     fn two_entry_points() {
         let m = parse(&sample(0x0001_0500)).unwrap();
         let a = m.entry_point("a").unwrap();
-        assert_eq!(a.workgroup_size, [64, 1, 1]);
+        assert_eq!((a.stage, a.workgroup_size), (Stage::Compute, [64, 1, 1]));
         assert_eq!(a.push_constant_size, 20); // offset 8 + 3 x stride 4
         assert_eq!(a.bindings, [buffer(0, 0, true, 32, false, Some("params")), buffer(0, 1, true, 16, true, Some("rays"))]);
         let b = m.entry_point("b").unwrap();
@@ -375,6 +393,18 @@ mod tests {
         let uniform = Binding { kind: BindingKind::UniformBuffer, ..buffer(1, 0, true, 16, false, None) };
         assert_eq!(b.bindings, [buffer(0, 0, true, 32, false, Some("params")), buffer(0, 2, false, 4, true, None), uniform]);
         assert!(m.entry_point("c").is_none());
+    }
+
+    #[test]
+    fn vertex_and_fragment_shaders_have_stages_and_no_workgroup() {
+        let mut a = Asm(sample(0x0001_0500));
+        a.op_s(15, &[0, 102], "v", &[13]).op_s(15, &[4, 103], "f", &[]).op_s(15, &[3, 104], "g", &[]);
+        let m = parse(&a.0).unwrap();
+        let v = m.entry_point("v").unwrap();
+        assert_eq!((v.stage, v.workgroup_size), (Stage::Vertex, [0; 3]));
+        assert_eq!(v.bindings, [buffer(0, 1, true, 16, true, Some("rays"))]);
+        assert_eq!(m.entry_point("f").unwrap().stage, Stage::Fragment);
+        assert!(m.entry_point("g").is_none(), "geometry shaders are skipped");
     }
 
     #[test]

@@ -28,6 +28,17 @@ pub enum RayOrderArg {
 }
 
 #[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
+pub enum PrimaryArg {
+    /// Camera rays traced like every other ray.
+    Trace,
+    /// Primary hits by rasterisation (Horn et al.): the GPU draws the triangles' ids with a
+    /// depth test, each pixel's candidate is checked by the watertight test and the ray traced
+    /// where it fails (the BVH or the kd-tree's full stack); every pixel of a sample is
+    /// sampled at the same point of its area.
+    Raster,
+}
+
+#[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
 pub enum IntegratorArg {
     /// One shadow ray per pixel centre (no indirect light).
     Direct,
@@ -204,6 +215,11 @@ pub enum Command {
         /// on an H200), scanline otherwise.
         #[arg(long, value_enum)]
         ray_order: Option<RayOrderArg>,
+        /// How the camera rays' first hits are found (direct and path integrators): `trace`,
+        /// or `raster` (rasterised, then the paths continue from the hits; natively, where
+        /// there is no rasteriser, traced).
+        #[arg(long, value_enum, default_value = "trace")]
+        primary: PrimaryArg,
         /// Leaf-list entries per ray of the decomposed pipeline.
         #[arg(long, default_value_t = kdray::accel::DEFAULT_LEAF_CAPACITY)]
         leaf_capacity: u32,
@@ -489,6 +505,7 @@ pub fn run(cli: Cli) -> Result<()> {
             packets,
             pipeline,
             ray_order,
+            primary,
             leaf_capacity,
             bounces,
             integrator,
@@ -535,6 +552,9 @@ pub fn run(cli: Cli) -> Result<()> {
                 }
             }
             let spread = parse_emission(&emission)?;
+            if primary == PrimaryArg::Raster && integrator == IntegratorArg::Photon {
+                bail!("--primary raster is for the direct and path integrators (--integrator direct|path)");
+            }
             if size == 0 || size > 16384 {
                 bail!("--size must be between 1 and 16384, got {size}");
             }
@@ -605,6 +625,7 @@ pub fn run(cli: Cli) -> Result<()> {
                         };
                         o.fused = !split_passes;
                         o.sampler = sampler.kind();
+                        o.raster = primary == PrimaryArg::Raster;
                         let pb = progress("render");
                         let (r, s) = path::render_checkpointed(&t, accel, &cam, &o, &Bar(pb.clone()), path::CHECKPOINT_SECONDS)?;
                         pb.finish_and_clear();

@@ -132,12 +132,7 @@ impl<'a> Bed<'a> {
 
     /// A ray set with its oracle sample and native full-stack reference answers.
     pub fn ray_set(&self, kind: impl Into<String>, rays: Vec<Ray>, closest: bool) -> Result<RaySet> {
-        let mut rng = Rng::new(7, rays.len() as u32);
-        let sample: Vec<Ray> = if rays.is_empty() {
-            Vec::new()
-        } else {
-            (0..ORACLE_SAMPLE.min(rays.len())).map(|_| rays[(rng.next_u32() as usize) % rays.len()]).collect()
-        };
+        let sample: Vec<Ray> = sample_indices(rays.len()).into_iter().map(|i| rays[i]).collect();
         Ok(RaySet {
             kind: kind.into(),
             oracle: answers(&self.cpu, Accel::BRUTE, &sample, closest)?,
@@ -163,18 +158,8 @@ impl<'a> Bed<'a> {
                 // kept: on the H100 the same kernel on the same rays ran up to 5× slower in
                 // some attempts than in others, steadily within an attempt (see
                 // docs/benchmarks/README.md).
-                let mut best: Option<kdray::gpu::Timing> = None;
-                let mut medians = Vec::new();
-                for _ in 0..ATTEMPTS {
-                    let t = self.time(g, gt, accel, set.closest, &set.rays, self.reps)?;
-                    let m = median(if t.gpu_ms.is_empty() { &t.wall_ms } else { &t.gpu_ms }).unwrap_or(f64::NAN);
-                    if medians.iter().all(|b| m < *b) {
-                        best = Some(t);
-                    }
-                    medians.push(m);
-                }
+                let (t, medians) = best_of_attempts(|| self.time(g, gt, accel, set.closest, &set.rays, self.reps))?;
                 let attempts = medians.len();
-                let t = best.expect("one attempt");
                 let parts = t.parts_ms.iter().map(|p| median(p).unwrap_or(f64::NAN)).collect::<Vec<_>>();
                 spread_text = format!(
                     "{}; attempt medians {:.3}–{:.3} ms",
@@ -239,6 +224,117 @@ impl<'a> Bed<'a> {
             notes: notes.join("; "),
         })
     }
+}
+
+impl Bed<'_> {
+    /// The camera's primary rays of `set` (`rays::primary`: pixel centres in scanline order)
+    /// found by rasterisation (`Tracer::raster_passes`), traced by `accel` where the
+    /// rasteriser's answer is not trusted: timed like `measure` (draw, image copy and resolve
+    /// together), its answers checked against the oracle sample and the reference, and how
+    /// many differ from the reference (the tie rule of `kdray_shared::raster`) in the notes.
+    /// Natively every ray is traced (there is no rasteriser).
+    pub fn measure_raster(&self, set: &RaySet, accel: Accel) -> Result<Row> {
+        let cam = self.scene.camera.to_pod(self.size, self.size);
+        if set.rays.len() != (cam.width * cam.height) as usize {
+            anyhow::bail!("rasterised primaries: {} rays are not the camera's {}² primary rays", set.rays.len(), self.size);
+        }
+        let t = self.tracer();
+        let p = t.raster_params(&cam)?;
+        let rt = t.rt;
+        let visible = rt.alloc::<u32>("visibility", p.row_words as usize * cam.height as usize)?;
+        let out = rt.alloc::<kdray_shared::Hit>("primary hit", p.count as usize)?;
+        let passes = t.raster_passes(accel, &p, &visible, &out)?;
+        let passes: Vec<&dyn kdray::runtime::Kernel> = passes.iter().map(|k| k.as_ref()).collect();
+        let n = set.rays.len();
+        let (wall, gpu_ms, spread_text) = match &self.gpu {
+            Some((g, _)) => {
+                let (t, medians) = best_of_attempts(|| Ok(g.time_passes(&passes, self.reps)?))?;
+                let parts: Vec<f64> = t.parts_ms.iter().map(|p| median(p).unwrap_or(f64::NAN)).collect();
+                let text = format!(
+                    "{}; GPU ms draw {:.3} / resolve {:.3} (the image copy between them)",
+                    spread_note(if t.gpu_ms.is_empty() { &t.wall_ms } else { &t.gpu_ms }, medians.len()),
+                    parts.first().copied().unwrap_or(f64::NAN),
+                    parts.get(1).copied().unwrap_or(f64::NAN)
+                );
+                (median(&t.wall_ms).unwrap_or(f64::NAN), median(&t.gpu_ms), text)
+            }
+            None => {
+                let mut times = Vec::new();
+                for rep in 0..=self.reps {
+                    let start = Instant::now();
+                    rt.run(&passes)?;
+                    if rep > 0 {
+                        times.push(start.elapsed().as_secs_f64() * 1e3);
+                    }
+                }
+                (median(&times).unwrap_or(f64::NAN), None, spread_note(&times, 1))
+            }
+        };
+        rt.run(&passes)?;
+        let hits = rt.read(&out, n)?;
+        let visible = rt.read(&visible, visible.len())?;
+        let got: Vec<u32> = hits.iter().map(|h| h.prim).collect();
+        let sample: Vec<u32> = sample_indices(n).into_iter().map(|i| got[i]).collect();
+        let differ = got.iter().zip(&set.reference).filter(|(a, b)| a != b).count();
+        // Pixels whose candidate the rasteriser named and the ray confirmed: resolved without a
+        // traversal.
+        let confirmed = hits
+            .iter()
+            .enumerate()
+            .filter(|(i, h)| h.is_hit() && visible[(*i as u32 / cam.width * p.row_words + *i as u32 % cam.width) as usize] == h.prim + 1)
+            .count();
+        let empty = (0..n).filter(|&i| visible[(i as u32 / cam.width * p.row_words + i as u32 % cam.width) as usize] == kdray_shared::raster::EMPTY).count();
+        let notes = [
+            spread_text,
+            format!("{differ} of {n} answers differ from the full stack's (raster tie rule)"),
+            format!("{:.2} % of rays resolved by their pixel's triangle, {:.2} % empty pixels, the rest traced", 100.0 * confirmed as f64 / n.max(1) as f64, 100.0 * empty as f64 / n.max(1) as f64),
+        ];
+        Ok(Row {
+            scene: self.scene.name.clone(),
+            triangles: self.scene.triangles.len(),
+            resolution: self.size,
+            ray_type: set.kind.clone(),
+            rays: n,
+            method: format!("raster+{}", accel.name()),
+            mrays_gpu: gpu_ms.map(|ms| n as f64 / (ms * 1e3)),
+            mrays_wall: n as f64 / (wall * 1e3),
+            nodes: f64::NAN,
+            leaves: f64::NAN,
+            tris: f64::NAN,
+            restarts: f64::NAN,
+            vs_stack: None,
+            oracle_mismatch: mismatch(&sample, &set.oracle),
+            reference_mismatch: mismatch(&got, &set.reference),
+            fallbacks: None,
+            notes: notes.join("; "),
+        })
+    }
+}
+
+/// `ATTEMPTS` timings by `time` (each with fresh buffers where `time` makes them): the one with
+/// the lowest median (GPU time where there is one), and every attempt's median.
+fn best_of_attempts(mut time: impl FnMut() -> Result<kdray::gpu::Timing>) -> Result<(kdray::gpu::Timing, Vec<f64>)> {
+    let mut best: Option<kdray::gpu::Timing> = None;
+    let mut medians = Vec::new();
+    for _ in 0..ATTEMPTS {
+        let t = time()?;
+        let m = median(if t.gpu_ms.is_empty() { &t.wall_ms } else { &t.gpu_ms }).unwrap_or(f64::NAN);
+        if medians.iter().all(|b| m < *b) {
+            best = Some(t);
+        }
+        medians.push(m);
+    }
+    Ok((best.expect("one attempt"), medians))
+}
+
+/// The indices of a batch of `n` rays checked against the oracle (`ORACLE_SAMPLE` of them,
+/// drawn with a fixed seed; the same for every method).
+pub fn sample_indices(n: usize) -> Vec<usize> {
+    if n == 0 {
+        return Vec::new();
+    }
+    let mut rng = Rng::new(7, n as u32);
+    (0..ORACLE_SAMPLE.min(n)).map(|_| (rng.next_u32() as usize) % n).collect()
 }
 
 /// The spread of the timed runs: "ms min / max of N" and the attempts it took.

@@ -224,21 +224,27 @@ const HORN_ROWS: [(&str, Accel); 9] = [
     ("compressed 8-wide BVH, packets", Accel::BVH_PACKETS),
 ];
 
+/// Primary hits by rasterisation (Horn et al. §5), traced by this structure where needed:
+/// a row of primary rays only (`Bed::measure_raster`; method `raster+NAME`).
+const RASTER_ROW: (&str, Accel) = ("rasterised primaries, BVH where needed", Accel::BVH);
+
 /// Horn et al. 2007, Table 1: Mrays/s of the cumulative variants for primary (PS) and shadow
-/// (SS) rays on four scenes.
+/// (SS) rays on four scenes, and primary hits by rasterisation.
 fn horn(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
     let specs = horn_scenes(o);
-    let horn_rows: Vec<(&str, Accel)> = match &o.methods {
-        None => HORN_ROWS.to_vec(),
+    let raster_name = format!("raster+{}", RASTER_ROW.1.name());
+    let (horn_rows, raster): (Vec<(&str, Accel)>, bool) = match &o.methods {
+        None => (HORN_ROWS.to_vec(), true),
         Some(m) => {
-            let known: Vec<String> = HORN_ROWS.iter().map(|(_, a)| a.name()).collect();
+            let mut known: Vec<String> = HORN_ROWS.iter().map(|(_, a)| a.name()).collect();
+            known.push(raster_name.clone());
             if let Some(bad) = m.iter().find(|x| !known.contains(x)) {
                 bail!("--method {bad}: not a row of the horn suite (its methods: {})", known.join(", "));
             }
-            HORN_ROWS.iter().copied().filter(|(_, a)| m.contains(&a.name())).collect()
+            (HORN_ROWS.iter().copied().filter(|(_, a)| m.contains(&a.name())).collect(), m.contains(&raster_name))
         }
     };
-    o.progress.set_length((specs.len() * horn_rows.len() * 2) as u64);
+    o.progress.set_length((specs.len() * (horn_rows.len() * 2 + raster as usize)) as u64);
     let mut rows = Vec::new();
     let mut names = Vec::new();
     for spec in &specs {
@@ -252,6 +258,10 @@ fn horn(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
                 o.progress.inc(1);
             }
         }
+        if raster {
+            rows.push(bed.measure_raster(&primary, RASTER_ROW.1)?);
+            o.progress.inc(1);
+        }
     }
     let peers = match (&o.peer, &o.dump_rays) {
         (Some(cmd), Some(dir)) => peer_rows(cmd, dir, &mut rows)?,
@@ -263,13 +273,17 @@ fn horn(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
         header.push(format!("{n} PS"));
         header.push(format!("{n} SS"));
     }
-    let mut cells: Vec<Vec<String>> = horn_rows
+    let mut labelled: Vec<(&str, String)> = horn_rows.iter().map(|(label, accel)| (*label, accel.name())).collect();
+    if raster {
+        labelled.push((RASTER_ROW.0, raster_name.clone()));
+    }
+    let mut cells: Vec<Vec<String>> = labelled
         .iter()
-        .map(|(label, accel)| {
-            let mut r = vec![format!("{label} (`{}`)", accel.name())];
+        .map(|(label, method)| {
+            let mut r = vec![format!("{label} (`{method}`)")];
             for n in &names {
                 for kind in ["primary", "shadow"] {
-                    r.push(find(n, kind, &accel.name()).map(|x| format!("{:.1}", x.mrays())).unwrap_or_default());
+                    r.push(find(n, kind, method).map(|x| format!("{:.1}", x.mrays())).unwrap_or_default());
                 }
             }
             r
@@ -303,10 +317,10 @@ fn horn(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
     let mut files = finish(o, "horn", "Horn et al. Table 1: kd-restart, packets, push-down, short-stack", &summary, &rows)?;
     plot(o, &mut files, "horn", |p| {
         let categories: Vec<String> = names.iter().flat_map(|n| [format!("{n} PS"), format!("{n} SS")]).collect();
-        let series = horn_rows
+        let series = labelled
             .iter()
-            .map(|(label, accel)| {
-                let v = names.iter().flat_map(|n| ["primary", "shadow"].map(|k| find(n, k, &accel.name()).map(|x| x.mrays()).unwrap_or(0.0))).collect();
+            .map(|(label, method)| {
+                let v = names.iter().flat_map(|n| ["primary", "shadow"].map(|k| find(n, k, method).map(|x| x.mrays()).unwrap_or(0.0))).collect();
                 (label.to_string(), v)
             })
             .collect();
