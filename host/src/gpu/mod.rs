@@ -366,6 +366,10 @@ impl Gpu {
             let similar: Vec<&str> = m.entry_points.iter().map(|e| short_name(&e.name)).filter(|e| e.starts_with(stem)).collect();
             err!(Gpu: "the SPIR-V module has no kernel '{name}' (kernels like it: {})", similar.join(", "))
         })?;
+        let want = if draw.is_some() { reflect::Stage::Vertex } else { reflect::Stage::Compute };
+        if info.stage != want {
+            bail!(Gpu: "entry point '{name}' is a {:?} shader, not a {want:?} one", info.stage);
+        }
         let visibility = if draw.is_some() { wgpu::ShaderStages::VERTEX } else { wgpu::ShaderStages::COMPUTE };
         let entries: Vec<wgpu::BindGroupLayoutEntry> = info
             .bindings

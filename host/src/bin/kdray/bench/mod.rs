@@ -79,6 +79,8 @@ pub struct Bed<'a> {
     pub scene: &'a Scene,
     pub tree: &'a KdTreeData,
     pub bvh: kdray::bvh::BvhData,
+    /// Seconds the BVH took to build (`bvh::try_build`).
+    pub bvh_seconds: f64,
     pub cpu: Tracer<'a>,
     pub gpu: Option<(&'a Gpu, Tracer<'a>)>,
     pub size: u32,
@@ -87,8 +89,11 @@ pub struct Bed<'a> {
 
 impl<'a> Bed<'a> {
     pub fn new(scene: &'a Scene, tree: &'a KdTreeData, gpu: Option<&'a Gpu>, size: u32, reps: usize) -> Result<Self> {
+        let start = Instant::now();
         let bvh = kdray::bvh::try_build(&scene.triangles)?;
+        let bvh_seconds = start.elapsed().as_secs_f64();
         Ok(Bed {
+            bvh_seconds,
             scene,
             tree,
             cpu: Tracer::new(&NATIVE, scene, Some(tree))?.with_bvh(&bvh)?,

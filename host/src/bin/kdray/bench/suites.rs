@@ -379,7 +379,7 @@ fn bounces(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
 /// The photon-mapping paper's Fig. 7: primary-ray speed against scene size on `chairs:K`, with
 /// c/log N and c/log² N through the first point; build time and memory per N.
 fn scaling(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
-    let methods = [Accel::kd(Algorithm::Stack), Accel::kd(Algorithm::ShortStack(3))];
+    let methods = [Accel::kd(Algorithm::Stack), Accel::kd(Algorithm::ShortStack(3)), Accel::BVH];
     let ks: Vec<u32> = std::iter::successors(Some(1u32), |k| Some(k * 4)).take_while(|k| *k <= o.max_chairs).collect();
     o.progress.set_length((ks.len() * methods.len()) as u64);
     let mut rows = Vec::new();
@@ -391,11 +391,14 @@ fn scaling(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
         let bed = Bed::new(scene, tree, o.gpu, o.size, o.reps)?;
         let (primary, _) = primary_and_shadow(o, &bed)?;
         let n = scene.triangles.len() as f64;
+        let bvh_bytes = bed.bvh.nodes.len() * std::mem::size_of::<kdray_shared::bvh::BvhNode>() + bed.bvh.tris.len() * std::mem::size_of::<kdray_shared::Triangle>();
         let mut line = vec![
             k.to_string(),
             scene.triangles.len().to_string(),
             format!("{:.3}", tree.stats.build_seconds),
             format!("{:.1}", tree.stats.bytes as f64 / 1048576.0),
+            format!("{:.3}", bed.bvh_seconds),
+            format!("{:.1}", bvh_bytes as f64 / 1048576.0),
         ];
         for (m, accel) in methods.iter().enumerate() {
             let row = bed.measure(&primary, *accel)?;
@@ -418,9 +421,10 @@ fn scaling(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
         series.push(Series { name: "c / log N".into(), points: fit(1), dashed: true });
         series.push(Series { name: "c / log² N".into(), points: fit(2), dashed: true });
     }
-    let header: Vec<String> = ["K chairs", "triangles", "build s", "tree MiB", "`stack` Mrays/s", "`shortstack:3` Mrays/s", "c / log N", "c / log² N"].map(String::from).to_vec();
+    let header: Vec<String> =
+        ["K chairs", "triangles", "kd build s", "kd-tree MiB", "BVH build s", "BVH MiB", "`stack` Mrays/s", "`shortstack:3` Mrays/s", "`bvh` Mrays/s", "c / log N", "c / log² N"].map(String::from).to_vec();
     let summary = format!(
-        "## Primary rays against scene size\n\n`chairs:K` (K chairs of 1 468 triangles and a floor), {}² primary rays. The fitted curves pass through the first short-stack point.\n\n{}",
+        "## Primary rays against scene size\n\n`chairs:K` (K chairs of 1 468 triangles and a floor), {}² primary rays: the kd-tree (full stack, short stack of 3) and the compressed wide BVH side by side; build times on the host (the BVH's includes its collapse to 8 wide and quantisation). The fitted curves pass through the first short-stack point.\n\n{}",
         o.size,
         markdown(&header, &cells)
     );
