@@ -20,7 +20,8 @@ kd, bvh, raster, meta = {}, {}, {}, {}
 for r in rows:
     key = (r["scene"], r["ray_type"])
     v = float(r["mrays_s_gpu_timestamps"] or r["mrays_s_wall"])
-    meta[key] = (r["rays"], r["device"], r["date"], r["oracle_mismatch_rate"])
+    if not r["method"].startswith("raster+"):
+        meta[key] = (r["rays"], r["device"], r["date"], r["oracle_mismatch_rate"])
     if r["method"] == "bvh":
         bvh[key] = v
     elif r["method"].startswith("raster+"):

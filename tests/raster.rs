@@ -17,8 +17,9 @@ use kdray_shared::kdtree::Algorithm;
 use kdray_shared::raster::{EMPTY, UNKNOWN};
 use kdray_shared::{camera, Camera, Hit, RasterParams};
 
-/// A tenth of a pixel: the rasterisers' sub-pixel precision is 1/256 (Vulkan implementations
-/// commonly; llvmpipe's too), so a disagreement further from an edge than this is an error.
+/// A sixteenth of a pixel: the rasterisers' sub-pixel precision is 1/256 (Vulkan
+/// implementations commonly; llvmpipe's too), so a disagreement further from an edge than this
+/// is an error.
 const EDGE_PIXELS: f64 = 1.0 / 16.0;
 /// Relative difference of two hits' distances that the depth buffer cannot order (24 bits of
 /// mantissa, with room for the interpolation's rounding).
@@ -51,7 +52,7 @@ fn project(cam: &Camera, v: [f32; 3]) -> Option<(f64, f64)> {
 }
 
 /// Distance in pixels from the centre of pixel `pixel` to the nearest edge line of triangle
-/// `prim` (infinite when a corner lies behind the eye: no bound is checked then).
+/// `prim` (0 when a corner lies behind the eye: no bound is checked then).
 fn edge_distance(scene: &Scene, cam: &Camera, pixel: u32, prim: u32) -> f64 {
     let t = &scene.triangles[prim as usize];
     let p = [t.v0, t.v1, t.v2].map(|v| project(cam, v));
@@ -75,6 +76,111 @@ fn raster(t: &Tracer, accel: Accel, cam: &Camera) -> (RasterParams, Vec<u32>, Ve
     let out = rt.alloc::<Hit>("primary hit", p.count as usize).unwrap();
     rt.run(&t.raster_passes(accel, &p, &visible, &out).unwrap().iter().map(|k| k.as_ref()).collect::<Vec<_>>()).unwrap();
     (p, rt.read(&visible, visible.len()).unwrap(), rt.read(&out, out.len()).unwrap())
+}
+
+/// The projection and the per-pixel resolve natively, on hand-made visibility buffers: points
+/// along a pixel's primary ray land on its centre; an empty pixel is a miss, a right candidate
+/// is its watertight hit, a wrong or unknown one is traced — in tiled order, 200 pixels wide
+/// (rows padded to 256 words).
+#[test]
+fn projection_and_resolve_natively() {
+    use kdray_shared::{raster, trace::Brute};
+    let scene = kdray::scene::load("cornell-chair").unwrap();
+    let mut cam = scene.camera.to_pod(200, 72);
+    cam.order = kdray_shared::ORDER_TILES;
+    let n = cam.width * cam.height;
+    let p = RasterParams::new(&cam, scene.triangles.len() as u32, n, 1e-3);
+    assert_eq!(p.row_words, 256);
+    let mut rng = kdray_shared::rng::Rng::new(3, 4);
+    for _ in 0..2000 {
+        let pixel = rng.next_u32() % n;
+        let r = camera::primary_ray(&cam, pixel);
+        let t = 1.0 + 2000.0 * rng.next_f32();
+        let c = p.clip([r.origin[0] + t * r.dir[0], r.origin[1] + t * r.dir[1], r.origin[2] + t * r.dir[2]]);
+        // wgpu's NDC (y up) to framebuffer pixels (y down).
+        let (x, y) = ((c[0] / c[3] + 1.0) * 0.5 * cam.width as f32, (1.0 - c[1] / c[3]) * 0.5 * cam.height as f32);
+        let want = ((pixel % cam.width) as f32 + 0.5, (pixel / cam.width) as f32 + 0.5);
+        assert!((x - want.0).abs() < 2e-3 && (y - want.1).abs() < 2e-3, "pixel {pixel} at t {t}: projected to ({x}, {y}), its centre is {want:?}");
+        assert!(c[2] > 0.0 && c[2] <= c[3], "depth within [0, 1]");
+    }
+    let tree = build(&scene.triangles, &BuildOptions::default());
+    let view = tree.view(&scene.triangles);
+    let tris = kdray_shared::parts::Parts::one(&scene.triangles);
+    let rays: Vec<_> = (0..n).map(|i| camera::primary_ray(&cam, camera::pixel(&cam, i))).collect();
+    let want = Tracer::new(&NATIVE, &scene, Some(&tree)).unwrap().closest_hits(Accel::kd(Algorithm::Stack), &rays).unwrap();
+    let resolve = |visible: &[u32]| {
+        let mut out = vec![Hit::NONE; n as usize];
+        for i in 0..n {
+            raster::primary_hit::<Brute, _>(i, &p, &view, &tris, visible, out.as_mut_slice());
+        }
+        out
+    };
+    let slot = |i: u32| {
+        let px = camera::pixel(&cam, i);
+        ((px / cam.width) * p.row_words + px % cam.width) as usize
+    };
+    let mut right = vec![EMPTY; (p.row_words * cam.height) as usize];
+    for i in 0..n {
+        right[slot(i)] = if want[i as usize].is_hit() { want[i as usize].prim + 1 } else { EMPTY };
+    }
+    let differ = |got: Vec<Hit>| got.iter().zip(&want).filter(|(a, b)| a != b).count();
+    assert_eq!(differ(resolve(&right)), 0, "right candidates: the watertight hits");
+    assert_eq!(differ(resolve(&vec![UNKNOWN; right.len()])), 0, "unknown pixels: traced");
+    // A wrong candidate: a triangle the pixel's ray misses (and an index past the triangles).
+    let nt = scene.triangles.len() as u32;
+    let mut wrong = right.clone();
+    let mut tried = 0;
+    for i in 0..n {
+        let ray = &rays[i as usize];
+        let miss = (1..nt).map(|k| (want[i as usize].prim.wrapping_add(k)) % nt).find(|&c| !kdray_shared::brute::closest_hit(ray, &scene.triangles[c as usize..c as usize + 1]).is_hit());
+        wrong[slot(i)] = match (i % 2, miss) {
+            (0, Some(c)) => c + 1,
+            _ => nt + 1 + i,
+        };
+        tried += miss.is_some() as u32;
+    }
+    assert!(tried > n / 2);
+    assert_eq!(differ(resolve(&wrong)), 0, "wrong candidates: traced");
+    let empty = resolve(&vec![EMPTY; right.len()]);
+    assert!(empty.iter().all(|h| !h.is_hit()), "empty pixels: misses");
+}
+
+/// `RENDER_PRIMARY_GIVEN`: the paths take bounce 0's hit from `primary_hits` (both schedules):
+/// given misses everywhere, the image is black and the hits stay as given, where the traced
+/// image is not.
+#[test]
+fn eye_paths_continue_from_the_given_hits() {
+    use kdray::integrator::path::{eye_passes, params, FrameBuffers};
+    use kdray::kernels::Film;
+    let scene = kdray::scene::load("cornell").unwrap();
+    let t = Tracer::new(&NATIVE, &scene, None).unwrap();
+    let cam = scene.camera.to_pod(32, 24);
+    let n = (cam.width * cam.height) as usize;
+    let rt = t.rt;
+    for fused in [true, false] {
+        let o = PathOptions::direct(1, 2);
+        let run = |given: bool| {
+            let fb = FrameBuffers::new(&t, Accel::BRUTE, n).unwrap();
+            let mut p = params(&t, &cam, &o, 0, n, 0);
+            if given {
+                p.flags |= kdray_shared::RENDER_PRIMARY_GIVEN;
+                rt.write(&fb.film.primary_hits, &vec![Hit::NONE; n]).unwrap();
+            }
+            let mut passes = eye_passes(&t, Accel::BRUTE, &p, &fb, fused).unwrap();
+            passes.push(Box::new(Film { params: p, paths: &fb.paths, radiance: &fb.film.radiance }));
+            rt.run(&passes.iter().map(|k| k.as_ref()).collect::<Vec<_>>()).unwrap();
+            (rt.read(&fb.film.primary_hits, n).unwrap(), rt.read(&fb.film.radiance, n).unwrap())
+        };
+        let (hits, radiance) = run(false);
+        assert!(hits.iter().any(|h| h.is_hit()) && radiance.iter().any(|c| c[0] + c[1] + c[2] > 0.0), "fused {fused}: traced");
+        let (hits, radiance) = run(true);
+        assert!(hits.iter().all(|h| *h == Hit::NONE), "fused {fused}: the given hits stay");
+        assert!(radiance.iter().all(|c| c[0] + c[1] + c[2] == 0.0), "fused {fused}: no hit given, no light");
+        let mut p = params(&t, &cam, &o, 0, n, 0);
+        p.flags |= kdray_shared::RENDER_PRIMARY_GIVEN | kdray_shared::RENDER_JITTER;
+        let fb = FrameBuffers::new(&t, Accel::BRUTE, n).unwrap();
+        assert!(eye_passes(&t, Accel::BRUTE, &p, &fb, fused).is_err(), "given hits are for pixel centres");
+    }
 }
 
 #[test]
@@ -169,15 +275,19 @@ fn renders_continue_from_rasterised_hits() {
     let tree = build(&scene.triangles, &BuildOptions::default());
     let bvh = kdray::bvh::try_build(&scene.triangles).unwrap();
     let cam = scene.camera.to_pod(120, 88);
+    let mut tiled = cam;
+    tiled.order = kdray_shared::ORDER_TILES;
     let native = Tracer::new(&NATIVE, &scene, Some(&tree)).unwrap().with_bvh(&bvh).unwrap();
     let direct = PathOptions::direct(3, 4);
     let raster_direct = PathOptions { raster: true, ..direct };
     // Natively every ray is traced: through the pixel centres, the same image bit for bit, in
-    // both schedules (whole paths, a pass per bounce).
+    // both schedules (whole paths, a pass per bounce) and both pixel orders.
     for fused in [true, false] {
-        let a = render(&native, Accel::BVH, &cam, &PathOptions { fused, ..direct });
-        let b = render(&native, Accel::BVH, &cam, &PathOptions { fused, ..raster_direct });
-        assert!(a.hits == b.hits && a.radiance == b.radiance, "natively (fused: {fused}): the rasterised render is the traced one");
+        for c in [&cam, &tiled] {
+            let a = render(&native, Accel::BVH, c, &PathOptions { fused, ..direct });
+            let b = render(&native, Accel::BVH, c, &PathOptions { fused, ..raster_direct });
+            assert!(a.hits == b.hits && a.radiance == b.radiance, "natively (fused: {fused}, order {}): the rasterised render is the traced one", c.order);
+        }
     }
     // Jittered samples: every pixel of a sample group at the group's point; the film converges
     // to the same image as the traced one's (means within 1 %).
@@ -191,11 +301,11 @@ fn renders_continue_from_rasterised_hits() {
 
     let Some(g) = common::gpu() else { return };
     let gt = Tracer::new(g, &scene, Some(&tree)).unwrap().with_bvh(&bvh).unwrap();
-    for accel in [Accel::BVH, Accel::kd(Algorithm::Stack)] {
+    for (accel, c) in [(Accel::BVH, &cam), (Accel::kd(Algorithm::Stack), &tiled)] {
         for fused in [true, false] {
-            let what = format!("{} (fused: {fused})", accel.name());
-            let traced = render(&gt, accel, &cam, &PathOptions { fused, ..direct });
-            let rastered = render(&gt, accel, &cam, &PathOptions { fused, ..raster_direct });
+            let what = format!("{} (fused: {fused}, order {})", accel.name(), c.order);
+            let traced = render(&gt, accel, c, &PathOptions { fused, ..direct });
+            let rastered = render(&gt, accel, c, &PathOptions { fused, ..raster_direct });
             // The paths continue from the hits: where the primary hit is the traced one, so is
             // the pixel's colour, bit for bit (same device, same numbers).
             let mut differ = 0;

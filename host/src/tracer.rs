@@ -376,6 +376,18 @@ impl<'r> Tracer<'r> {
         self.rt.alloc::<T>(label, n)
     }
 
+    /// How rasterised primary hits trace where the rasteriser's answer is not trusted: the
+    /// BVH or the kd-tree's full stack, one ray per thread, one kernel (`accel` says which);
+    /// an error for any other `accel`, or a structure that was not built.
+    pub fn raster_method(&self, accel: Accel) -> Result<TraceMethod> {
+        self.check(accel)?;
+        match (accel.structure, accel.traversal, accel.grouping, accel.pipeline) {
+            (Structure::Bvh, _, _, Pipeline::Monolithic) => Ok(TraceMethod::Bvh),
+            (Structure::KdTree, kdray_shared::kdtree::Algorithm::Stack, Grouping::Single, Pipeline::Monolithic) => Ok(TraceMethod::Single(kdray_shared::kdtree::Algorithm::Stack)),
+            _ => bail!(InvalidInput: "rasterised primary hits trace with the BVH or the kd-tree's full stack (one kernel), not '{}'", accel.name()),
+        }
+    }
+
     /// Parameters of the rasterised primary hits of camera `cam` (`raster`): its projection,
     /// clipping at 10^-6 of the scene's diagonal from the eye along its axis. Fails for a
     /// camera without pixels or whose axes do not span space.
@@ -384,8 +396,8 @@ impl<'r> Tracer<'r> {
             bail!(InvalidInput: "the camera cannot be rasterised: a {} x {} image whose axes do not span space", cam.width, cam.height);
         }
         let pixels = cam.width as u64 * cam.height as u64;
-        if raster::row_words(cam.width) as u64 * cam.height as u64 > u32::MAX as u64 {
-            bail!(TooLarge: "an image of {} x {} pixels is too large to rasterise", cam.width, cam.height);
+        if raster::row_words(cam.width) as u64 * cam.height as u64 > u32::MAX as u64 || self.tri_count * 3 > u32::MAX as u64 {
+            bail!(TooLarge: "an image of {} x {} pixels of {} triangles is too large to rasterise", cam.width, cam.height, self.tri_count);
         }
         let b = self.scene_bounds;
         let diagonal = (0..3).map(|k| (b.max[k] - b.min[k]) as f64).map(|e| e * e).sum::<f64>().sqrt();
@@ -401,18 +413,12 @@ impl<'r> Tracer<'r> {
     /// (`RasterHits`: the BVH, or the kd-tree's full stack). `out[i]` is the camera's i-th
     /// pixel in its order; the answers are the traversal's up to `raster`'s tie rule.
     pub fn raster_passes<'a>(&'a self, accel: Accel, p: &RasterParams, visible: &'a Buffer<u32>, out: &'a Buffer<Hit>) -> Result<Vec<Box<dyn Kernel + 'a>>> {
-        self.check(accel)?;
-        let method = match accel.structure {
-            Structure::Bvh => TraceMethod::Bvh,
-            Structure::KdTree => TraceMethod::Single(accel.traversal),
-            Structure::Brute => TraceMethod::Brute,
-        };
+        let method = self.raster_method(accel)?;
         let need = p.row_words as usize * p.camera.height as usize;
         if visible.len() < need || out.len() < p.count as usize {
             bail!(InvalidInput: "rasterised primary hits of {} rays need {need} visibility words and as many results; the buffers hold {} and {}", p.count, visible.len(), out.len());
         }
-        let hits = RasterHits::new(method, *p, &self.scene_box, self.scene_binds(accel), visible, out)
-            .ok_or_else(|| crate::error::err!(InvalidInput: "rasterised primary hits trace with the BVH or the kd-tree's full stack, not '{}'", accel.name()))?;
+        let hits = RasterHits::new(method, *p, &self.scene_box, self.scene_binds(accel), visible, out).expect("raster_method checked it");
         Ok(vec![Box::new(RasterDraw { params: *p, tris: &self.tris, visible }), Box::new(hits)])
     }
 

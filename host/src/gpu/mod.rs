@@ -612,8 +612,8 @@ impl Gpu {
             bail!(TooLarge: "kernel {name}: an image of {} x {} pixels in rows of {} words cannot be drawn (this GPU draws at most {max} x {max})", d.width, d.height, d.row_words);
         }
         let bytes = 4 * d.row_words as u64 * d.height as u64;
-        if target.buffer.bytes() < bytes {
-            bail!(Gpu: "kernel {name}: '{}' holds {} bytes, the image {bytes}", d.target, target.buffer.bytes());
+        if target.elem != 4 || target.buffer.bytes() < bytes {
+            bail!(Gpu: "kernel {name}: '{}' holds {} bytes of {}-byte elements, the image {bytes} bytes of u32", d.target, target.buffer.bytes(), target.elem);
         }
         let dest = self.own(target.buffer)?;
         let t = self.draw_targets(d.row_words, d.height);

@@ -158,6 +158,7 @@ pub fn with_samples(p: RenderParams, samples: u32) -> RenderParams {
 /// `RENDER_CONTINUE` the paths resume from their gather points (`ContinuePaths`) instead of
 /// leaving the camera, and `primary_hits` stays as it is. The film is `film`.
 pub fn path_passes<'a>(t: &'a Tracer, accel: Accel, p: &RenderParams, fb: &'a FrameBuffers, film: &'a FilmBuffers) -> Result<Vec<Box<dyn Kernel + 'a>>> {
+    check_given(p)?;
     let n = p.count as usize;
     let resuming = p.flags & RENDER_CONTINUE != 0;
     let mut v: Vec<Box<dyn Kernel + 'a>> = if resuming {
@@ -190,6 +191,15 @@ pub fn path_passes<'a>(t: &'a Tracer, accel: Accel, p: &RenderParams, fb: &'a Fr
     Ok(v)
 }
 
+/// Given primary hits (`RENDER_PRIMARY_GIVEN`) are those of the camera's rays through pixel
+/// centres of one batch from the first pixel, one sample each: anything else is an error.
+fn check_given(p: &RenderParams) -> Result<()> {
+    if p.flags & RENDER_PRIMARY_GIVEN != 0 && (p.first != 0 || p.samples != 1 || p.flags & RENDER_JITTER != 0) {
+        bail!(InvalidInput: "given primary hits are for one sample through the pixel centres of a batch from pixel 0 (first {}, {} samples, jitter {})", p.first, p.samples, p.flags & RENDER_JITTER != 0);
+    }
+    Ok(())
+}
+
 /// The whole-path kernel for `p` (camera to end in one thread), when the module has one for
 /// this way of finding hits on this runtime (`Tracer::whole_path_method`).
 pub fn fused_pass<'a>(t: &'a Tracer, accel: Accel, p: &RenderParams, fb: &'a FrameBuffers, film: &'a FilmBuffers) -> Option<TracePaths<'a>> {
@@ -205,6 +215,7 @@ pub fn eye_passes<'a>(t: &'a Tracer, accel: Accel, p: &RenderParams, fb: &'a Fra
 
 /// `eye_passes` into the film `film`.
 pub fn eye_passes_into<'a>(t: &'a Tracer, accel: Accel, p: &RenderParams, fb: &'a FrameBuffers, film: &'a FilmBuffers, fused: bool) -> Result<Vec<Box<dyn Kernel + 'a>>> {
+    check_given(p)?;
     if fused {
         if let Some(k) = fused_pass(t, accel, p, fb, film) {
             return Ok(vec![Box::new(k)]);
@@ -267,6 +278,9 @@ pub fn render_checkpointed(t: &Tracer, accel: Accel, cam: &Camera, o: &PathOptio
     let rt = t.rt;
     let start = std::time::Instant::now();
     let n = (cam.width * cam.height) as usize;
+    if o.raster {
+        t.raster_method(accel)?;
+    }
     // Rasterised primaries: one batch of the whole image, one sample per pixel a dispatch.
     let b = if o.raster { n } else { t.batch_size(accel, n) };
     if o.raster && (n as u64 * std::mem::size_of::<ShadeTerms>() as u64 > rt.max_binding() || n > t.batch_size(accel, n).max(1 << 22)) {
