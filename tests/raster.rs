@@ -38,6 +38,14 @@ fn scenes() -> Vec<Scene> {
     s
 }
 
+/// Two hits of one triangle by one ray whose numbers agree up to the last bits (the same
+/// watertight test, compiled into two kernels: a driver may contract its operations
+/// differently in each).
+fn same_numbers(a: &Hit, b: &Hit) -> bool {
+    let t = (a.t == b.t) || ((a.t - b.t) as f64).abs() <= 4.0 * f32::EPSILON as f64 * a.t.abs() as f64;
+    t && (a.b1 - b.b1).abs() <= 1e-6 && (a.b2 - b.b2).abs() <= 1e-6
+}
+
 /// Pixel coordinates (x, y) of the scene point `v` seen by `cam` (float64), or `None` behind
 /// the eye.
 fn project(cam: &Camera, v: [f32; 3]) -> Option<(f64, f64)> {
@@ -222,8 +230,10 @@ fn gpu_raster_names_the_traversals_triangle_up_to_the_tie_rule() {
         for accel in [Accel::BVH, Accel::kd(Algorithm::Stack)] {
             let what = format!("{} with {}", scene.name, accel.name());
             // The same device's traversal: the candidate's test is the same code on the same
-            // device, so its numbers are bit for bit (the native ones may differ in the last
-            // bits of the barycentrics: Vulkan's division is not correctly rounded).
+            // device, so its numbers agree up to how the driver compiled each kernel (on the
+            // H200 the last bits of t and the barycentrics differed: `same_numbers`); the
+            // native ones may differ in the last bits too (Vulkan's division is not correctly
+            // rounded).
             let want = t.closest_hits(accel, &rays).unwrap();
             assert_eq!(want.iter().map(|h| h.prim).collect::<Vec<_>>(), oracle.iter().map(|h| h.prim).collect::<Vec<_>>(), "{what}: the GPU traversal");
             let (p, visible, got) = raster(&t, accel, &cam);
@@ -239,14 +249,12 @@ fn gpu_raster_names_the_traversals_triangle_up_to_the_tie_rule() {
                     misses += 1;
                     empty += (v == EMPTY) as usize;
                 }
-                if w == h {
+                if w.prim == h.prim {
+                    assert!(same_numbers(w, h), "{what}: ray {i} hits its triangle {} with other numbers: {h:?} vs {w:?}", w.prim);
                     continue;
                 }
                 differ += 1;
                 assert!(w.is_hit(), "{what}: ray {i} hits {} where the traversal misses", h.prim);
-                if h.is_hit() && h.prim == w.prim {
-                    panic!("{what}: ray {i} hits its triangle {} with other numbers: {h:?} vs {w:?}", w.prim);
-                }
                 let edge = edge_distance(&scene, &cam, pixel, w.prim);
                 let tie = h.is_hit() && ((h.t - w.t) as f64).abs() <= DEPTH_TIE * w.t as f64;
                 assert!(
@@ -310,8 +318,11 @@ fn renders_continue_from_rasterised_hits() {
             // the pixel's colour, bit for bit (same device, same numbers).
             let mut differ = 0;
             for (k, (a, b)) in traced.hits.iter().zip(&rastered.hits).enumerate() {
-                if a == b {
-                    assert_eq!(traced.radiance[k], rastered.radiance[k], "{what}: pixel {k}, same hit, other colour");
+                if a.prim == b.prim {
+                    assert!(same_numbers(a, b), "{what}: pixel {k}: {a:?} traced, {b:?} rasterised");
+                    let (x, y) = (traced.radiance[k], rastered.radiance[k]);
+                    let close = (0..3).all(|c| (x[c] - y[c]).abs() <= 1e-4 * x[c].abs().max(1e-3));
+                    assert!(close, "{what}: pixel {k}, same hit, other colour: {x:?} vs {y:?}");
                 } else {
                     differ += 1;
                 }

@@ -12,7 +12,9 @@
 //! `Greater`; the float depth keeps 24 bits of relative precision at every distance).
 //!
 //! What the answers are (the tie rule, tested in `tests/raster.rs`):
-//! * a pixel whose candidate the ray hits gets that hit, bit for bit the watertight test's;
+//! * a pixel whose candidate the ray hits gets that hit from the watertight test (the same
+//!   operations as the traversals'; a driver may compile them differently in two kernels: on
+//!   the H200 the last bits of `t` and the barycentrics differed from the BVH kernel's);
 //! * a pixel whose candidate the ray misses (the rasteriser's coverage and the watertight test
 //!   disagree within its sub-pixel precision, near an edge) is traced through the structure:
 //!   its answer is the traversal's;
