@@ -161,20 +161,24 @@ fn eye_paths_continue_from_the_given_hits() {
     use kdray::integrator::path::{eye_passes, params, FrameBuffers};
     use kdray::kernels::Film;
     let scene = kdray::scene::load("cornell").unwrap();
-    let t = Tracer::new(&NATIVE, &scene, None).unwrap();
+    let tree = build(&scene.triangles, &BuildOptions::default());
+    let t = Tracer::new(&NATIVE, &scene, Some(&tree)).unwrap();
+    // The kd full stack: it has whole-path kernels for given hits (`eye_paths_given_stack`).
+    let accel = Accel::kd(Algorithm::Stack);
     let cam = scene.camera.to_pod(32, 24);
     let n = (cam.width * cam.height) as usize;
     let rt = t.rt;
     for fused in [true, false] {
         let o = PathOptions::direct(1, 2);
         let run = |given: bool| {
-            let fb = FrameBuffers::new(&t, Accel::BRUTE, n).unwrap();
+            let fb = FrameBuffers::new(&t, accel, n).unwrap();
             let mut p = params(&t, &cam, &o, 0, n, 0);
             if given {
                 p.flags |= kdray_shared::RENDER_PRIMARY_GIVEN;
                 rt.write(&fb.film.primary_hits, &vec![Hit::NONE; n]).unwrap();
             }
-            let mut passes = eye_passes(&t, Accel::BRUTE, &p, &fb, fused).unwrap();
+            let mut passes = eye_passes(&t, accel, &p, &fb, fused).unwrap();
+            assert_eq!(passes.len(), if fused { 1 } else { passes.len().max(2) }, "fused: one whole-path kernel");
             passes.push(Box::new(Film { params: p, paths: &fb.paths, radiance: &fb.film.radiance }));
             rt.run(&passes.iter().map(|k| k.as_ref()).collect::<Vec<_>>()).unwrap();
             (rt.read(&fb.film.primary_hits, n).unwrap(), rt.read(&fb.film.radiance, n).unwrap())
@@ -186,8 +190,8 @@ fn eye_paths_continue_from_the_given_hits() {
         assert!(radiance.iter().all(|c| c[0] + c[1] + c[2] == 0.0), "fused {fused}: no hit given, no light");
         let mut p = params(&t, &cam, &o, 0, n, 0);
         p.flags |= kdray_shared::RENDER_PRIMARY_GIVEN | kdray_shared::RENDER_JITTER;
-        let fb = FrameBuffers::new(&t, Accel::BRUTE, n).unwrap();
-        assert!(eye_passes(&t, Accel::BRUTE, &p, &fb, fused).is_err(), "given hits are for pixel centres");
+        let fb = FrameBuffers::new(&t, accel, n).unwrap();
+        assert!(eye_passes(&t, accel, &p, &fb, fused).is_err(), "given hits are for pixel centres");
     }
 }
 

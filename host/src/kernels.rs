@@ -19,7 +19,7 @@ use kdray_shared::photon::{self, HashGrid, KdCells, PhotonWord, SortedPhotons};
 use kdray_shared::raster;
 use kdray_shared::{
     render, sort, Hit, IndexParams, ItemParams, LeafCells, Light, Material, PathState, Photon, PhotonParams, PhotonPath, RasterParams, Ray,
-    RenderParams, ShadeTerms, SortParams, TraceParams, Triangle,
+    RenderParams, ShadeTerms, RENDER_CONTINUE, RENDER_PRIMARY_GIVEN, SortParams, TraceParams, Triangle,
 };
 use std::borrow::Cow;
 use std::marker::PhantomData;
@@ -1292,7 +1292,7 @@ impl Kernel for TracePhotons<'_> {
 /// A whole-path eye kernel's native twin over threads `ts`.
 type PathRun<'a> = fn(&TracePaths<'a>, std::ops::Range<u32>);
 
-fn run_paths<'a, M: Method>(k: &TracePaths<'a>, ts: std::ops::Range<u32>)
+fn run_paths<'a, M: Method, const GIVEN: bool>(k: &TracePaths<'a>, ts: std::ops::Range<u32>)
 where
     M::Accel<'a>: View<'a>,
 {
@@ -1304,7 +1304,7 @@ where
         let (tris, materials, lights) = (k.scene.tris.host(), k.materials.host(), k.lights.host());
         let (mut rays, mut paths, mut hits) = (k.rays.host_store(), k.paths.host_store(), k.primary_hits.host_store());
         for t in ts {
-            render::trace_path::<M, HostStore<'a, Ray>, HostStore<'a, PathState>, HostStore<'a, Hit>>(t, &k.params, &accel, &tris, materials, lights, &mut rays, &mut paths, &mut hits)
+            render::trace_path::<M, HostStore<'a, Ray>, HostStore<'a, PathState>, HostStore<'a, Hit>, GIVEN>(t, &k.params, &accel, &tris, materials, lights, &mut rays, &mut paths, &mut hits)
         }
     }
 }
@@ -1313,7 +1313,7 @@ struct PickPaths<'s>(PhantomData<&'s ()>);
 impl<'s> WithTraversal for PickPaths<'s> {
     type Out = PathRun<'s>;
     fn call<T: Traversal + PacketTraversal>(self) -> PathRun<'s> {
-        run_paths::<Kd<T>>
+        run_paths::<Kd<T>, false>
     }
 }
 
@@ -1344,8 +1344,13 @@ pub struct TracePaths<'a> {
 impl<'a> TracePaths<'a> {
     /// Entry-point prefix (`eye_paths_<method>`).
     pub const PREFIX: &'static str = "eye_paths";
+    /// Entry-point prefix of the paths from given primary hits (`RENDER_PRIMARY_GIVEN`:
+    /// `eye_paths_given_<method>`, for the BVH and the kd full stack).
+    pub const GIVEN_PREFIX: &'static str = "eye_paths_given";
 
-    /// `None` for packets (paths are traced one ray at a time).
+    /// `None` for packets (paths are traced one ray at a time), and for given primary hits
+    /// (`RENDER_PRIMARY_GIVEN` without `RENDER_CONTINUE`) with a method other than the BVH or
+    /// the kd full stack (their paths then go pass by pass).
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         method: TraceMethod,
@@ -1358,13 +1363,18 @@ impl<'a> TracePaths<'a> {
         paths: &'a Buffer<PathState>,
         primary_hits: &'a Buffer<Hit>,
     ) -> Option<Self> {
-        let cpu: PathRun<'a> = match method {
-            TraceMethod::Brute => run_paths::<Brute>,
-            TraceMethod::Single(a) => kdray_shared::kdtree::with_traversal(a, PickPaths(PhantomData)),
-            TraceMethod::Bvh => run_paths::<Wide>,
-            TraceMethod::Packet(_) | TraceMethod::BvhPacket => return None,
+        let given = params.flags & RENDER_PRIMARY_GIVEN != 0 && params.flags & RENDER_CONTINUE == 0;
+        let cpu: PathRun<'a> = match (method, given) {
+            (TraceMethod::Bvh, true) => run_paths::<Wide, true>,
+            (TraceMethod::Single(kdray_shared::kdtree::Algorithm::Stack), true) => run_paths::<Kd<kdray_shared::kdtree::Full>, true>,
+            (_, true) => return None,
+            (TraceMethod::Brute, false) => run_paths::<Brute, false>,
+            (TraceMethod::Single(a), false) => kdray_shared::kdtree::with_traversal(a, PickPaths(PhantomData)),
+            (TraceMethod::Bvh, false) => run_paths::<Wide, false>,
+            (TraceMethod::Packet(_) | TraceMethod::BvhPacket, false) => return None,
         };
-        Some(TracePaths { params, scene_box, scene, materials, lights, rays, paths, primary_hits, entry: format!("{}_{}", Self::PREFIX, method.suffix()), cpu })
+        let prefix = if given { Self::GIVEN_PREFIX } else { Self::PREFIX };
+        Some(TracePaths { params, scene_box, scene, materials, lights, rays, paths, primary_hits, entry: format!("{prefix}_{}", method.suffix()), cpu })
     }
 }
 

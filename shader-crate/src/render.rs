@@ -90,7 +90,7 @@ pub fn rng_fill(
 /// element 1 (the push constants have no room left for it). `$a`, `$b` are the structure's two
 /// buffers (kd: `nodes`, `prims`; BVH: `bvh`, `bvh_tris`) and `$view` makes its view of them.
 macro_rules! eye_paths {
-    ($name:ident, $m:ty, $id:literal, $a:ident, $a1:ident, $a2:ident: $at:ty, $b:ident, $b1:ident, $b2:ident: $bt:ty, $view:ident) => {
+    ($name:ident, $given:literal, $m:ty, $id:literal, $a:ident, $a1:ident, $a2:ident: $at:ty, $b:ident, $b1:ident, $b2:ident: $bt:ty, $view:ident) => {
         #[spirv(compute(threads(64)))]
         pub fn $name(
             #[spirv(global_invocation_id)] id: UVec3,
@@ -118,12 +118,15 @@ macro_rules! eye_paths {
             let tris = parts(split_tris, tris, tris1, tris2);
             let (a, b) = (parts(split[0], $a, $a1, $a2), parts(split[1], $b, $b1, $b2));
             let accel = crate::$view(Aabb { min: [lo[0], lo[1], lo[2]], max: [hi[0], hi[1], hi[2]] }, tris, a, b);
-            render::trace_path::<$m, _, _, _>(crate::item(id, groups), params, &accel, &tris, materials, lights, rays, paths, primary_hits);
+            render::trace_path::<$m, _, _, _, $given>(crate::item(id, groups), params, &accel, &tris, materials, lights, rays, paths, primary_hits);
         }
     };
 }
 
-eye_paths!(eye_paths_brute, Brute, 1, nodes, nodes1, nodes2: KdNode, prims, prims1, prims2: u32, kd_view);
-eye_paths!(eye_paths_stack, Kd<Full>, 1, nodes, nodes1, nodes2: KdNode, prims, prims1, prims2: u32, kd_view);
-eye_paths!(eye_paths_shortstack3, Kd<Short<3>>, 1, nodes, nodes1, nodes2: KdNode, prims, prims1, prims2: u32, kd_view);
-eye_paths!(eye_paths_bvh, Wide, 3, bvh, bvh1, bvh2: BvhNode, bvh_tris, bvh_tris1, bvh_tris2: TriWords, bvh_view);
+eye_paths!(eye_paths_brute, false, Brute, 1, nodes, nodes1, nodes2: KdNode, prims, prims1, prims2: u32, kd_view);
+eye_paths!(eye_paths_stack, false, Kd<Full>, 1, nodes, nodes1, nodes2: KdNode, prims, prims1, prims2: u32, kd_view);
+eye_paths!(eye_paths_shortstack3, false, Kd<Short<3>>, 1, nodes, nodes1, nodes2: KdNode, prims, prims1, prims2: u32, kd_view);
+eye_paths!(eye_paths_bvh, false, Wide, 3, bvh, bvh1, bvh2: BvhNode, bvh_tris, bvh_tris1, bvh_tris2: TriWords, bvh_view);
+// Paths from given primary hits (`RENDER_PRIMARY_GIVEN`: the rasterised primaries' structures).
+eye_paths!(eye_paths_given_stack, true, Kd<Full>, 1, nodes, nodes1, nodes2: KdNode, prims, prims1, prims2: u32, kd_view);
+eye_paths!(eye_paths_given_bvh, true, Wide, 3, bvh, bvh1, bvh2: BvhNode, bvh_tris, bvh_tris1, bvh_tris2: TriWords, bvh_view);

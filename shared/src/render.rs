@@ -169,15 +169,16 @@ pub fn rng_fill<O: Store<[u32; 4]> + ?Sized>(i: u32, p: &ItemParams, out: &mut O
 }
 
 /// Path `i` of the batch from the camera (or, with `RENDER_CONTINUE`, from its gather point by
-/// `resume`, leaving `primary_hits` alone; with `RENDER_PRIMARY_GIVEN`, its first hit read from
-/// `primary_hits[i]`) to its end in one item: `camera_rays`, then per
+/// `resume`, leaving `primary_hits` alone; where `GIVEN` and `RENDER_PRIMARY_GIVEN`, its first
+/// hit read from `primary_hits[i]`: the rasterised primaries' kernels, so that the others
+/// carry no trace of it) to its end in one item: `camera_rays`, then per
 /// bounce (up to `p.max_bounces`) a closest-hit query by `M`, `shade::path_step`, the shadow
 /// ray's any-hit query and `shade::accumulate` — the same paths as the schedule of separate
 /// passes, without a dispatch per bounce. Leaves the path (and its gather point, if any, in
 /// `rays[i]`) for the gather and the film; the primary hit goes to `primary_hits[i]`.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-pub fn trace_path<M: Method, R, P, H>(
+pub fn trace_path<M: Method, R, P, H, const GIVEN: bool>(
     i: u32,
     p: &RenderParams,
     accel: &M::Accel<'_>,
@@ -200,7 +201,7 @@ pub fn trace_path<M: Method, R, P, H>(
     // same invocation read zeros on NVIDIA's driver 580 (lavapipe read the values written).
     let resuming = p.flags & RENDER_CONTINUE != 0;
     let (mut ray, mut path) = if resuming { resume(p, &rays.load(k), &paths.load(k)) } else { camera_sample(i, p) };
-    let given = !resuming && p.flags & RENDER_PRIMARY_GIVEN != 0;
+    let given = GIVEN && !resuming && p.flags & RENDER_PRIMARY_GIVEN != 0;
     let mut bounce = 0;
     while bounce <= p.max_bounces && path.is_active() {
         let hit = if bounce == 0 && given {
