@@ -123,10 +123,7 @@ fn projection_and_resolve_natively() {
         }
         out
     };
-    let slot = |i: u32| {
-        let px = camera::pixel(&cam, i);
-        ((px / cam.width) * p.row_words + px % cam.width) as usize
-    };
+    let slot = |i: u32| p.slot(camera::pixel(&cam, i));
     let mut right = vec![EMPTY; (p.row_words * cam.height) as usize];
     for i in 0..n {
         right[slot(i)] = if want[i as usize].is_hit() { want[i as usize].prim + 1 } else { EMPTY };
@@ -245,7 +242,7 @@ fn gpu_raster_names_the_traversals_triangle_up_to_the_tie_rule() {
             let mut differ = 0;
             for (i, (w, h)) in want.iter().zip(&got).enumerate() {
                 let pixel = camera::pixel(&cam, i as u32);
-                let v = visible[((pixel / cam.width) * p.row_words + pixel % cam.width) as usize];
+                let v = visible[p.slot(pixel)];
                 if w.is_hit() {
                     hits += 1;
                     named += (v == w.prim + 1) as usize;

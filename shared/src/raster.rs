@@ -84,6 +84,13 @@ impl RasterParams {
         }
     }
 
+    /// Where pixel `pixel` (row-major, row 0 at the top) is in the visibility buffer (rows of
+    /// `row_words`).
+    #[inline(always)]
+    pub fn slot(&self, pixel: u32) -> usize {
+        ((pixel / self.camera.width) * self.row_words + pixel % self.camera.width) as usize
+    }
+
     /// Clip-space position of the scene point `v` (wgpu's conventions: x right, y up, depth
     /// z / w in [0, 1]); after the perspective division and the viewport transform, x and y
     /// are the point's pixel coordinates as `camera::jittered_ray` takes them.
@@ -128,7 +135,7 @@ pub fn primary_hit<M: Method, O: Store<Hit> + ?Sized>(
     let cam = &p.camera;
     let pixel = camera::pixel(cam, i);
     let ray = camera::primary_ray(cam, pixel);
-    let v = visible[((pixel / cam.width) * p.row_words + pixel % cam.width) as usize];
+    let v = visible[p.slot(pixel)];
     let mut q = Closest::new(&ray);
     let mut settled = v == EMPTY;
     let prim = v.wrapping_sub(1);

@@ -286,9 +286,9 @@ impl Bed<'_> {
         let confirmed = hits
             .iter()
             .enumerate()
-            .filter(|(i, h)| h.is_hit() && visible[(*i as u32 / cam.width * p.row_words + *i as u32 % cam.width) as usize] == h.prim + 1)
+            .filter(|(i, h)| h.is_hit() && visible[p.slot(*i as u32)] == h.prim + 1)
             .count();
-        let empty = (0..n).filter(|&i| visible[(i as u32 / cam.width * p.row_words + i as u32 % cam.width) as usize] == kdray_shared::raster::EMPTY).count();
+        let empty = (0..n).filter(|&i| visible[p.slot(i as u32)] == kdray_shared::raster::EMPTY).count();
         let notes = [
             spread_text,
             format!("{differ} of {n} answers differ from the full stack's (raster tie rule)"),
