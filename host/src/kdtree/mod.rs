@@ -3,4 +3,4 @@
 pub mod sah;
 pub mod clip;
 
-pub use sah::{build, check_limits, try_build, BuildOptions, KdTreeData, TreeStats, DEFAULT_MAX_DUPLICATION};
+pub use sah::{build, check_limits, try_build, BuildOptions, KdTreeData, TreeStats, BINS, DEFAULT_BINNED_ABOVE, DEFAULT_MAX_DUPLICATION};

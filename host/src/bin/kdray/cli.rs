@@ -136,6 +136,13 @@ pub struct BuildArgs {
     /// clip triangles into both children duplicate them).
     #[arg(long, default_value_t = kdray::kdtree::DEFAULT_MAX_DUPLICATION)]
     pub max_duplication: f32,
+    /// Nodes with more triangles than this choose their split plane by binned SAH; the exact
+    /// sweep below.
+    #[arg(long, default_value_t = kdray::kdtree::DEFAULT_BINNED_ABOVE)]
+    pub binned_above: usize,
+    /// The exact SAH sweep at every node (Wald & Havran's build; slower, not better).
+    #[arg(long)]
+    pub exact_sah: bool,
 }
 
 impl BuildArgs {
@@ -153,6 +160,7 @@ impl BuildArgs {
             max_depth: self.max_depth,
             leaf_size: self.leaf_size,
             max_duplication: self.max_duplication,
+            binned_above: (!self.exact_sah).then_some(self.binned_above),
             ..Default::default()
         })
     }

@@ -559,22 +559,53 @@ fn build(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
         specs.extend(["chairs:64".to_string(), "chairs:1024".to_string()]);
     }
     o.progress.set_length(specs.len() as u64);
-    let header: Vec<String> = ["scene", "triangles", "build s", "s per M triangles", "nodes", "leaves", "empty leaves", "triangles/leaf", "references/triangle", "depth", "SAH cost", "MiB", "oracle mismatch"].map(String::from).to_vec();
+    let header: Vec<String> = [
+        "scene",
+        "triangles",
+        "build s",
+        "s per M triangles",
+        "exact sweep s per M",
+        "nodes",
+        "leaves",
+        "empty leaves",
+        "triangles/leaf",
+        "references/triangle",
+        "depth",
+        "SAH cost",
+        "SAH ÷ exact sweep's",
+        "MiB",
+        "oracle mismatch",
+        "BVH s per M",
+        "BVH SAH cost",
+    ]
+    .map(String::from)
+    .to_vec();
     let mut cells = Vec::new();
     let mut bars = Vec::new();
     for spec in &specs {
         let (scene, tree) = scenes.get(spec, &o.build)?;
         let s = &tree.stats;
+        // The same options with the exact sweep at every node (Wald & Havran): what binning
+        // the upper levels costs in tree quality, and saves in time.
+        let exact = match o.build.binned_above {
+            Some(_) => kdtree::try_build(&scene.triangles, &BuildOptions { binned_above: None, ..o.build.clone() })?.stats,
+            None => s.clone(),
+        };
+        let t0 = std::time::Instant::now();
+        let bvh = kdray::bvh::try_build(&scene.triangles)?;
+        let bvh_seconds = t0.elapsed().as_secs_f64();
+        let per_million = |seconds: f64| seconds / (scene.triangles.len() as f64 / 1e6);
         // The tree answers like the oracle (a sample of primary rays, full stack, natively).
         let bed = Bed::new(scene, tree, None, 64, 1)?;
         let set = bed.ray_set("primary", rays::primary(scene, 64), true)?;
         let got = answers(&bed.cpu, Accel::kd(Algorithm::Stack), &set.sample, true)?;
-        let per_m = s.build_seconds / (scene.triangles.len() as f64 / 1e6);
+        let per_m = per_million(s.build_seconds);
         cells.push(vec![
             scene.name.clone(),
             scene.triangles.len().to_string(),
             format!("{:.3}", s.build_seconds),
             format!("{per_m:.2}"),
+            format!("{:.2}", per_million(exact.build_seconds)),
             s.nodes.to_string(),
             s.leaves.to_string(),
             s.empty_leaves.to_string(),
@@ -582,17 +613,24 @@ fn build(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
             format!("{:.2}", s.references as f64 / s.triangles.max(1) as f64),
             s.max_depth.to_string(),
             format!("{:.1}", s.sah_cost),
+            format!("{:.3}", s.sah_cost / exact.sah_cost),
             format!("{:.2}", s.bytes as f64 / 1048576.0),
             format!("{:.1e}", mismatch(&got, &set.oracle)),
+            format!("{:.2}", per_million(bvh_seconds)),
+            format!("{:.1}", bvh.sah_cost),
         ]);
-        bars.push((scene.name.clone(), per_m));
+        bars.push((scene.name.clone(), per_m, per_million(bvh_seconds)));
         o.progress.inc(1);
     }
     let name = format!("build-{}", dev(o));
-    write_cells(&o.out, &name, "kd-tree build (SAH, Wald & Havran O(N log N))", &device_line(None), "", &header, &cells)?;
+    let how = match o.build.binned_above {
+        Some(m) => format!("binned SAH ({} planes per axis) above {m} triangles, the exact sweep below", kdtree::BINS - 1),
+        None => "the exact sweep everywhere".into(),
+    };
+    write_cells(&o.out, &name, &format!("kd-tree build (SAH: {how}; and the BVH's)"), &device_line(None), "", &header, &cells)?;
     let mut files = vec![o.out.join(format!("{name}.csv")), o.out.join(format!("{name}.md"))];
     plot(o, &mut files, "build", |p| {
-        bar_chart(p, &BarChart { title: format!("kd-tree build time per million triangles ({})", super::machine()), y_label: "s per 10^6 triangles".into(), categories: bars.iter().map(|b| b.0.clone()).collect(), series: vec![("build".into(), bars.iter().map(|b| b.1).collect())], stacked: false })
+        bar_chart(p, &BarChart { title: format!("build time per million triangles ({})", super::machine()), y_label: "s per 10^6 triangles".into(), categories: bars.iter().map(|b| b.0.clone()).collect(), series: vec![("kd-tree".into(), bars.iter().map(|b| b.1).collect()), ("BVH".into(), bars.iter().map(|b| b.2).collect())], stacked: false })
     });
     Ok(files)
 }
