@@ -987,6 +987,13 @@ impl CellVisitor for Sum {
         // made the lanes of a subgroup that counted nothing wait for those that did: 10 % of
         // the gather on the H200).
         let (counts, d2) = self.disc.test(w);
+        // Natively a branch is cheaper than the work it skips (most visited photons lie
+        // outside the disc; adding their zeros instead leaves the same sum): the native
+        // Cornell box render, 16 passes at 512², 15.3 → 11.9 s on 2 cores, the same image.
+        #[cfg(not(target_arch = "spirv"))]
+        if !counts {
+            return;
+        }
         let r2 = self.disc.r2;
         let k = if self.filter == FILTER_CONE {
             3.0 * (1.0 - sqrt(d2 / r2))
