@@ -298,8 +298,10 @@ fn binned_builds_answer_exactly() {
         let exact = build(&scene.triangles, &BuildOptions { binned_above: None, max_duplication: 4.0, ..Default::default() });
         let binned = build(&scene.triangles, &BuildOptions { binned_above: Some(48), max_duplication: 4.0, ..Default::default() });
         let (se, sb) = (exact.stats.sah_cost, binned.stats.sah_cost);
-        println!("{name}: SAH cost exact {se:.1}, binned {sb:.1}; nodes {} and {}", exact.stats.nodes, binned.stats.nodes);
-        assert!(binned.nodes != exact.nodes, "{name}: binning changed nothing");
+        let st = &binned.stats;
+        println!("{name}: SAH cost exact {se:.1}, binned {sb:.1}; nodes {} and {}; {} nodes binned, {} of them swept", exact.stats.nodes, st.nodes, st.binned_nodes, st.binned_fallbacks);
+        assert!(binned.nodes != exact.nodes && st.binned_nodes > 0, "{name}: binning changed nothing");
+        assert_eq!((exact.stats.binned_nodes, exact.stats.binned_fallbacks), (0, 0));
         assert!(sb <= 1.1 * se, "{name}: binned SAH cost {sb:.1} over 1.1 × the exact build's {se:.1}");
         assert!(binned.prims.len() as f64 <= 4.0 * n as f64, "{name}: {} references over the budget", binned.prims.len());
         let (rays, hard) = hard_rays(&scene, &binned, 20_000, 23);

@@ -23,6 +23,7 @@ use kdray_shared::aabb::Aabb;
 use kdray_shared::kdtree::{KdNode, KdTree, MAX_DEPTH};
 use kdray_shared::parts::Parts;
 use kdray_shared::Triangle;
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
 /// The SAH cost model and limits of a build; `Default` gives K_T = 15, K_I = 20, λ = 0.8.
@@ -46,10 +47,11 @@ pub struct BuildOptions {
     /// gets a share of the budget in proportion to its children's triangles and takes only the
     /// splits that fit, so the whole tree holds at most this many references per triangle.
     pub max_duplication: f32,
-    /// Nodes with more triangles than this choose their plane by binned SAH (`BINS` candidate
-    /// planes per axis, the chosen one moved into the nearest gap between the triangles'
-    /// bounds, where the exact sweep would put it) instead of the exact sweep; `None`: the
-    /// exact sweep everywhere (Wald & Havran's build). Binned nodes skip the sorted event lists.
+    /// Nodes with more triangles than this choose their plane by binned SAH (`BINS` − 1
+    /// candidate planes per axis, the chosen one moved into the gap between the triangles'
+    /// bounds around it, where the exact sweep would put a plane) instead of the exact sweep;
+    /// `None`: the exact sweep everywhere (Wald & Havran's build). Binned nodes skip the sorted
+    /// event lists. Below 32 it acts as 32 (smaller nodes are always swept exactly).
     pub binned_above: Option<usize>,
 }
 
@@ -103,6 +105,12 @@ pub struct TreeStats {
     pub bytes: usize,
     /// Wall-clock time of the build, in seconds.
     pub build_seconds: f64,
+    /// Nodes that chose their plane by binned SAH (`BuildOptions::binned_above`), and of them
+    /// those whose binned plane found no gap to go into, broke the budget or cost more than a
+    /// leaf, which the exact sweep then decided.
+    pub binned_nodes: usize,
+    /// See `binned_nodes`.
+    pub binned_fallbacks: usize,
 }
 
 /// A built tree: the buffers the traversals read.
@@ -187,7 +195,8 @@ fn push_axis_events(ev: &mut Vec<Event>, b: &Bounds, k: usize, tri: u32) {
 }
 
 /// A node's work: triangles (global ids), their clipped bounds, and the sorted events of
-/// each axis (events refer to positions in `tris`).
+/// each axis (events refer to positions in `tris`; none where the node will not sweep them:
+/// below a binned parent, for a binned or small node, a leaf).
 struct Work {
     tris: Vec<u32>,
     bounds: Vec<Bounds>,
@@ -287,6 +296,10 @@ struct Ctx<'a> {
     depth_limit: u32,
     /// Smallest gap between event positions a plane may go into (see `MIN_GAP`).
     min_gap: f32,
+    /// Nodes that looked for their plane by binned SAH, and those of them that fell back to
+    /// the exact sweep (`TreeStats`).
+    binned_nodes: AtomicUsize,
+    binned_fallbacks: AtomicUsize,
 }
 
 /// Planes go only into gaps between event positions of at least this fraction of the scene's
@@ -385,18 +398,32 @@ impl Ctx<'_> {
         if n <= SMALL {
             return self.build_small(&w.tris, &w.bounds, w.cell, w.depth, w.budget, out, idx);
         }
+        let half_area = area(&w.cell) * 0.5;
+        if half_area <= 0.0 {
+            // No plane can split a flat cell (neither search would find one).
+            return leaf(out, &w.tris);
+        }
+        let leaf_cost = self.opt.k_i as f64 * n as f64 * half_area;
         let mut binned = self.binned(n);
-        let mut best = if binned { self.binned_split(&w) } else { None };
-        if best.is_none() {
-            // An exact node, or a binned one whose plane found no gap to go into.
+        let mut best = None;
+        if binned {
+            self.binned_nodes.fetch_add(1, Ordering::Relaxed);
+            best = self.binned_split(&w).filter(|s| s.cost < leaf_cost);
+            if best.is_none() {
+                // The binned plane found no gap to go into, broke the budget or costs more
+                // than a leaf: the exact sweep decides, over every candidate.
+                self.binned_fallbacks.fetch_add(1, Ordering::Relaxed);
+                binned = false;
+            }
+        }
+        if !binned {
             if w.events[0].is_empty() {
                 w.events = sorted_events(&w.bounds);
             }
-            binned = false;
             best = self.best_split(&w);
         }
         let split = match best {
-            Some(s) if s.cost < self.opt.k_i as f64 * n as f64 * area(&w.cell) * 0.5 => s,
+            Some(s) if s.cost < leaf_cost => s,
             _ => return leaf(out, &w.tris),
         };
         let (mut left, mut right) = self.split(w, split, !binned);
@@ -451,8 +478,10 @@ impl Ctx<'_> {
         // no bounds, no clipping, no events (most leaves; the same tree).
         let (l_leaf, r_leaf) = (self.leaf_at_once(nl, w.depth + 1), self.leaf_at_once(nr, w.depth + 1));
         // A small child sorts its own events (`build_small`).
-        // A binned parent has no events to carry: its children sort their own (`build`).
-        let (l_events, r_events) = (carry_events && !l_leaf && nl > SMALL, carry_events && !r_leaf && nr > SMALL);
+        // A binned parent has no events to carry: its children sort their own (`build`); and
+        // a child that will be binned needs none.
+        let wants = |leaf: bool, c: usize| carry_events && !leaf && c > SMALL && !self.binned(c);
+        let (l_events, r_events) = (wants(l_leaf, nl), wants(r_leaf, nr));
         let mut lw = Work { tris: Vec::with_capacity(nl), bounds: Vec::with_capacity(if l_leaf { 0 } else { nl }), events: Default::default(), cell: lcell, depth: w.depth + 1, budget: w.budget };
         let mut rw = Work { tris: Vec::with_capacity(nr), bounds: Vec::with_capacity(if r_leaf { 0 } else { nr }), events: Default::default(), cell: rcell, depth: w.depth + 1, budget: w.budget };
         // A one-sided triangle's index in its child; the straddlers are clipped into both and
@@ -534,8 +563,9 @@ impl Ctx<'_> {
     /// cell and the planes between bins costed from the counts; the cheapest is moved into the
     /// gap between the bounds' positions around it (halfway, or 1/64 of an empty gap from the
     /// geometry: where the exact sweep puts its planes, so no plane passes through a vertex) and
-    /// costed again from exact counts. `None` if no plane is cheaper than a leaf's estimate or
-    /// the chosen one has no gap wide enough or breaks the node's budget: the caller sweeps.
+    /// costed again from exact counts. `None` if the chosen plane has no gap wide enough or
+    /// breaks the node's budget (`build` then sweeps, as it does where the plane costs more
+    /// than a leaf).
     fn binned_split(&self, w: &Work) -> Option<Split> {
         let n = w.tris.len();
         let half_area = area(&w.cell) * 0.5;
@@ -596,9 +626,16 @@ impl Ctx<'_> {
             (below + (above - below) * 0.5, above - below)
         };
         let (floor, ceil) = (below.max(lo), above.min(hi));
-        if !(p > floor && p < ceil && gap >= self.min_gap) {
+        let p = if p > floor && p < ceil && gap >= self.min_gap {
+            p
+        } else if below > f32::NEG_INFINITY && above < f32::INFINITY {
+            // Positions too close together there (a dense mesh's upper nodes hold more
+            // positions than `MIN_GAP` allows gaps): the nearest wide enough gap within a
+            // bin's width either side.
+            self.nearest_gap(w, k, pos, (hi - lo) / BINS as f32)?
+        } else {
             return None;
-        }
+        };
         let (mut nl, mut nr) = (0usize, 0usize);
         for b in &w.bounds {
             let sd = side(b, k, p);
@@ -609,6 +646,30 @@ impl Ctx<'_> {
             return None;
         }
         Some(Split { cost: AxisCost::new(self, &w.cell, k, half_area).at(p, nl, nr), axis: k, pos: p })
+    }
+
+    /// The plane halfway across the gap of at least `min_gap` between consecutive bounds
+    /// positions along axis `k` (both within `reach` of `pos`) whose plane lies nearest `pos`,
+    /// as the exact sweep places it; `None` if there is none.
+    fn nearest_gap(&self, w: &Work, k: usize, pos: f32, reach: f32) -> Option<f32> {
+        let mut xs: Vec<f32> = Vec::new();
+        for b in &w.bounds {
+            for x in [b.0[k], b.1[k]] {
+                if (x - pos).abs() <= reach {
+                    xs.push(x);
+                }
+            }
+        }
+        xs.sort_unstable_by(f32::total_cmp);
+        let mut best: Option<f32> = None;
+        for pair in xs.windows(2) {
+            let (a, b) = (pair[0], pair[1]);
+            let p = a + (b - a) * 0.5;
+            if b - a >= self.min_gap && p > a && p < b && best.is_none_or(|q| (p - pos).abs() < (q - pos).abs()) {
+                best = Some(p);
+            }
+        }
+        best
     }
 
     /// `build` for a node of at most `SMALL` triangles (`tris`, their clipped `bounds`): the
@@ -869,12 +930,18 @@ fn build_within(tris: &[Triangle], opt: &BuildOptions, limits: &Limits) -> Resul
     // The root's events, unless it is binned (`Ctx::build` sorts them where they are missing).
     let events = if opt.binned_above.is_some_and(|m| n > m) { Default::default() } else { sorted_events(&bounds) };
     let extent = (0..3).fold(0.0f32, |m, k| m.max(scene.1[k] - scene.0[k]));
-    let ctx = Ctx { tris, opt, depth_limit, min_gap: extent * MIN_GAP };
+    let ctx = Ctx { tris, opt, depth_limit, min_gap: extent * MIN_GAP, binned_nodes: AtomicUsize::new(0), binned_fallbacks: AtomicUsize::new(0) };
     let budget = opt.max_duplication.max(1.0) as f64 * n as f64;
     let Flat { nodes, prims, largest_leaf } = ctx.subtree(Work { tris: (0..n as u32).collect(), bounds, events, cell: scene, depth: 0, budget });
     check_counts(&TreeCounts { nodes: nodes.len() as u64, largest_leaf: largest_leaf as u64, prim_refs: prims.len() as u64 }, limits)?;
 
-    let mut st = TreeStats { triangles: n, depth_limit, ..Default::default() };
+    let mut st = TreeStats {
+        triangles: n,
+        depth_limit,
+        binned_nodes: ctx.binned_nodes.load(Ordering::Relaxed),
+        binned_fallbacks: ctx.binned_fallbacks.load(Ordering::Relaxed),
+        ..Default::default()
+    };
     let root_area = area(&scene).max(f64::MIN_POSITIVE);
     walk_stats(&nodes, 0, scene, 0, &mut st, opt, root_area);
     st.nodes = nodes.len();
@@ -925,6 +992,53 @@ mod tests {
             seen[*p as usize] = true;
         }
         assert!(seen.iter().all(|x| *x));
+    }
+
+    /// The exact sweep's trees stay as they were (a regression pin: 9461bea built these, before
+    /// the small-node builder and the division-free costs, which must not change them).
+    #[test]
+    fn exact_trees_are_pinned() {
+        for (spec, nodes, refs, sah) in [("cornell", 107, 98, 429.5), ("cornell-chair", 12091, 9203, 412.2)] {
+            let s = crate::scene::load(spec).unwrap();
+            let t = build(&s.triangles, &BuildOptions { binned_above: None, ..Default::default() });
+            assert_eq!((t.nodes.len(), t.prims.len()), (nodes, refs), "{spec}");
+            assert!((t.stats.sah_cost - sah).abs() < 0.05, "{spec}: SAH cost {}", t.stats.sah_cost);
+        }
+    }
+
+    /// A binned plane whose own gap is too narrow moves to the nearest wide enough gap within
+    /// a bin's width (a dense mesh's upper nodes), strictly between two bounds positions, with
+    /// its exact counts; with none within reach, or over the budget, the node sweeps (`None`).
+    #[test]
+    fn binned_planes_go_into_the_nearest_wide_gap() {
+        let opt = BuildOptions::default();
+        let ctx = Ctx { tris: &[], opt: &opt, depth_limit: 20, min_gap: 0.01, binned_nodes: AtomicUsize::new(0), binned_fallbacks: AtomicUsize::new(0) };
+        // Flat boxes along x: a dense run 0.500, 0.501, … 0.539 (gaps 0.001 < min_gap), then a
+        // gap to 0.56, and boxes spanning [0.56, 0.6] and [0.1, 0.2].
+        let mut bounds: Vec<Bounds> = (0..40).map(|i| ([0.5 + i as f32 * 0.001, 0.0, 0.0], [0.5 + i as f32 * 0.001, 1.0, 1.0])).collect();
+        bounds.push(([0.56, 0.0, 0.0], [0.6, 1.0, 1.0]));
+        bounds.push(([0.1, 0.0, 0.0], [0.2, 1.0, 1.0]));
+        let n = bounds.len();
+        let work = |budget: f64| Work { tris: (0..n as u32).collect(), bounds: bounds.clone(), events: Default::default(), cell: ([0.0; 3], [4.0, 1.0, 1.0]), depth: 0, budget };
+        let w = work(1e9);
+        let half_area = area(&w.cell) * 0.5;
+        // Inside the dense run: the gap 0.539 .. 0.56 is the nearest wide one within a bin's
+        // width (4/128) of 0.535 (0.2 .. 0.5 lies beyond it).
+        let s = ctx.into_gap(&w, 0, 0.535, half_area).unwrap();
+        let p = 0.539f32 + (0.56f32 - 0.539f32) * 0.5;
+        assert_eq!(s.pos, p);
+        assert!(bounds.iter().all(|b| b.0[0] != s.pos && b.1[0] != s.pos));
+        assert_eq!(s.cost, AxisCost::new(&ctx, &w.cell, 0, half_area).at(p, 41, 1));
+        // From a plane whose neighbours are far enough apart, that gap itself.
+        assert_eq!(ctx.into_gap(&w, 0, 0.3, half_area).unwrap().pos, 0.2 + (0.5 - 0.2) * 0.5);
+        // No wide gap within a bin's width: the sweep decides.
+        let dense: Vec<Bounds> = (0..40).map(|i| ([0.5 + i as f32 * 0.001, 0.0, 0.0], [0.5 + i as f32 * 0.001, 1.0, 1.0])).collect();
+        let far = Work { tris: (0..40).collect(), bounds: dense.clone(), events: Default::default(), cell: ([0.4, 0.0, 0.0], [0.6, 1.0, 1.0]), depth: 0, budget: 1e9 };
+        assert!(ctx.nearest_gap(&far, 0, 0.52, 0.015).is_none());
+        // Over the budget (the straddling box [0.56, 0.6] counts twice for a plane inside it).
+        let tight = work(n as f64);
+        assert!(ctx.into_gap(&tight, 0, 0.58, half_area).is_none());
+        assert!(ctx.into_gap(&tight, 0, 0.535, half_area).is_some());
     }
 
     /// The limits are exactly what the node format holds: the largest child index, leaf count
