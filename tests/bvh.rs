@@ -297,3 +297,20 @@ fn packets_go_together_and_answer_as_one_ray_each() {
     let rays: [Ray; 8] = std::array::from_fn(|l| Ray::new((c + Vec3::from(dirs[l]) * 4.0).to_array(), (-Vec3::from(dirs[l])).to_array(), 0.0, f32::INFINITY));
     assert!(!check(&view, &rays));
 }
+
+/// The builder's trees stay as they were (a regression pin: 9461bea built these, before the
+/// parallel bins and the collapse without allocations, which must not change them): sizes, SAH
+/// cost and a checksum of every node and triangle word (`chairs:64`: more triangles than a node
+/// bins in one thread).
+#[test]
+fn bvh_trees_are_pinned() {
+    for (spec, nodes, leaves, depth, sum) in [("cornell", 4usize, 17usize, 2usize, 0xa8b65c63c3b93485u64), ("cornell-chair", 216, 734, 5, 0xb42665b62a2f887e), ("chairs:64", 14288, 47405, 8, 0xfbdfffa7949a8afa)] {
+        let s = kdray::scene::load(spec).unwrap();
+        let b = kdray::bvh::try_build(&s.triangles).unwrap();
+        let words: &[u32] = bytemuck::cast_slice(&b.nodes);
+        let tri_words: &[u32] = bytemuck::cast_slice(&b.tris);
+        let check = words.iter().chain(tri_words).fold(0u64, |h, &w| h.wrapping_mul(0x100000001b3).wrapping_add(w as u64));
+        println!("{spec}: {} nodes, {} leaves, depth {}, SAH {:.4}, checksum {check:#x}", b.nodes.len(), b.leaves, b.depth, b.sah_cost);
+        assert_eq!((b.nodes.len(), b.leaves, b.depth, check), (nodes, leaves, depth, sum), "{spec}");
+    }
+}

@@ -1,8 +1,9 @@
 //! The compressed 8-wide BVH builder (Ylitie, Karras & Laine 2017), traversed by
 //! `kdray_shared::bvh` on CPU and GPU.
 //!
-//! 1. A binary BVH by binned SAH (`BINS` bins per axis, leaves of at most three triangles,
-//!    subtrees built in parallel). Object-median splits take over where the SAH finds no split
+//! 1. A binary BVH by binned SAH (`BINS` bins per axis, all three binned in one pass, leaves of
+//!    at most three triangles, subtrees built in parallel, and the bounds and bins of nodes
+//!    above `PARALLEL_PASS` triangles too). Object-median splits take over where the SAH finds no split
 //!    or where the depth left would not suffice, so the tree is never deeper than
 //!    `MAX_BVH_DEPTH`.
 //! 2. Collapse to eight wide: a node's children are its binary children, then repeatedly the
@@ -22,6 +23,7 @@ use crate::error::{bail, Result};
 use kdray_shared::bvh::{meta_is_node, BvhNode, BVH_WIDTH, MAX_BVH_DEPTH, MAX_LEAF_TRIS};
 use glam::UVec4;
 use kdray_shared::Triangle;
+use rayon::prelude::*;
 use std::collections::VecDeque;
 
 /// SAH bins per axis.
@@ -30,6 +32,9 @@ const BINS: usize = 16;
 const NODE_COST: f64 = 1.0;
 /// Triangles above which subtrees are built in parallel.
 const PARALLEL: usize = 4096;
+/// Triangles above which a node's bounds and bins are computed in parallel (the upper levels,
+/// which have fewer subtrees than threads).
+const PARALLEL_PASS: usize = 1 << 16;
 
 /// A built BVH: what `Tracer::with_bvh` uploads.
 #[derive(Clone, Debug)]
@@ -101,12 +106,7 @@ struct Input<'a> {
 /// Builds the binary tree over `prims` (their offset in the whole index list is `offset`).
 fn build2(inp: &Input, prims: &mut [u32], offset: usize, depth: usize, cost: &mut f64) -> Node2 {
     let n = prims.len();
-    let mut b = Bounds::EMPTY;
-    let mut cb = Bounds::EMPTY;
-    for &p in prims.iter() {
-        b.grow(&inp.boxes[p as usize]);
-        cb.grow_point(inp.centroids[p as usize]);
-    }
+    let (b, cb) = node_bounds(inp, prims);
     let leaf = |cost: &mut f64| {
         *cost += b.area() * n as f64;
         Node2::Leaf { b, first: offset, count: n }
@@ -154,6 +154,77 @@ fn build2(inp: &Input, prims: &mut [u32], offset: usize, depth: usize, cost: &mu
     Node2::Inner { b, kids: Box::new([a, c]) }
 }
 
+/// The bounds of `prims`' boxes and of their centroids; in parallel above `PARALLEL_PASS`
+/// (the same bounds: minima and maxima in any order).
+fn node_bounds(inp: &Input, prims: &[u32]) -> (Bounds, Bounds) {
+    let pass = |prims: &[u32]| {
+        let (mut b, mut cb) = (Bounds::EMPTY, Bounds::EMPTY);
+        for &p in prims {
+            b.grow(&inp.boxes[p as usize]);
+            cb.grow_point(inp.centroids[p as usize]);
+        }
+        (b, cb)
+    };
+    if prims.len() <= PARALLEL_PASS {
+        return pass(prims);
+    }
+    prims.par_chunks(PARALLEL_PASS / 4).map(pass).reduce(
+        || (Bounds::EMPTY, Bounds::EMPTY),
+        |(mut b, mut cb), (b2, cb2)| {
+            b.grow(&b2);
+            cb.grow(&cb2);
+            (b, cb)
+        },
+    )
+}
+
+/// Per axis, the primitives counted into `BINS` bins by centroid and the bins' bounds.
+#[derive(Copy, Clone)]
+struct Bins {
+    count: [[usize; BINS]; 3],
+    boxes: [[Bounds; BINS]; 3],
+}
+
+impl Bins {
+    const EMPTY: Bins = Bins { count: [[0; BINS]; 3], boxes: [[Bounds::EMPTY; BINS]; 3] };
+
+    /// `prims` binned along every axis of positive centroid extent, in one pass over them.
+    fn of(inp: &Input, prims: &[u32], cb: &Bounds) -> Bins {
+        let e = [cb.hi[0] - cb.lo[0], cb.hi[1] - cb.lo[1], cb.hi[2] - cb.lo[2]];
+        let mut bins = Bins::EMPTY;
+        for &p in prims {
+            let (c, b) = (inp.centroids[p as usize], &inp.boxes[p as usize]);
+            for axis in 0..3 {
+                if e[axis] > 0.0 {
+                    let k = bin_of(c[axis], cb.lo[axis], e[axis]);
+                    bins.count[axis][k] += 1;
+                    bins.boxes[axis][k].grow(b);
+                }
+            }
+        }
+        bins
+    }
+
+    /// `of`, in parallel above `PARALLEL_PASS` (the same bins: counts and bounds merged).
+    fn par_of(inp: &Input, prims: &[u32], cb: &Bounds) -> Bins {
+        if prims.len() <= PARALLEL_PASS {
+            return Bins::of(inp, prims, cb);
+        }
+        prims.par_chunks(PARALLEL_PASS / 4).map(|ch| Bins::of(inp, ch, cb)).reduce(
+            || Bins::EMPTY,
+            |mut a, b| {
+                for axis in 0..3 {
+                    for k in 0..BINS {
+                        a.count[axis][k] += b.count[axis][k];
+                        a.boxes[axis][k].grow(&b.boxes[axis][k]);
+                    }
+                }
+                a
+            },
+        )
+    }
+}
+
 fn bin_of(c: f32, lo: f32, extent: f32) -> usize {
     (((c - lo) / extent * BINS as f32) as usize).min(BINS - 1)
 }
@@ -163,18 +234,13 @@ fn bin_of(c: f32, lo: f32, extent: f32) -> usize {
 fn sah_split(inp: &Input, prims: &[u32], b: &Bounds, cb: &Bounds) -> Option<(usize, usize, f64)> {
     let mut best: Option<(usize, usize, f64)> = None;
     let parent = b.area().max(f64::MIN_POSITIVE);
+    let bins = Bins::par_of(inp, prims, cb);
     for axis in 0..3 {
         let e = cb.hi[axis] - cb.lo[axis];
         if !(e > 0.0) {
             continue;
         }
-        let mut count = [0usize; BINS];
-        let mut boxes = [Bounds::EMPTY; BINS];
-        for &p in prims {
-            let k = bin_of(inp.centroids[p as usize][axis], cb.lo[axis], e);
-            count[k] += 1;
-            boxes[k].grow(&inp.boxes[p as usize]);
-        }
+        let (count, boxes) = (&bins.count[axis], &bins.boxes[axis]);
         let mut right_area = [0.0f64; BINS];
         let mut right_count = [0usize; BINS];
         let (mut rb, mut rc) = (Bounds::EMPTY, 0);
@@ -211,15 +277,42 @@ fn median(inp: &Input, prims: &mut [u32], cb: &Bounds) -> usize {
 }
 
 /// The (up to eight) children of a wide node made from `n`.
-fn wide_children(n: &Node2) -> Vec<&Node2> {
-    let mut kids: Vec<&Node2> = match n {
-        Node2::Leaf { .. } => vec![n],
-        Node2::Inner { kids, .. } => vec![&kids[0], &kids[1]],
-    };
-    while kids.len() < BVH_WIDTH {
-        let pick = kids
-            .iter()
-            .enumerate()
+/// A wide node's children (at most `BVH_WIDTH`), in a fixed array (no allocation per node).
+struct Kids<'a> {
+    k: [Option<&'a Node2>; BVH_WIDTH],
+    len: usize,
+}
+
+impl<'a> Kids<'a> {
+    fn get(&self, i: usize) -> &'a Node2 {
+        self.k[i].expect("a child below len")
+    }
+    fn push(&mut self, n: &'a Node2) {
+        self.k[self.len] = Some(n);
+        self.len += 1;
+    }
+    /// Removes child `i`, moving the last into its place (`Vec::swap_remove`).
+    fn swap_remove(&mut self, i: usize) -> &'a Node2 {
+        let n = self.get(i);
+        self.k[i] = self.k[self.len - 1];
+        self.k[self.len - 1] = None;
+        self.len -= 1;
+        n
+    }
+}
+
+fn wide_children(n: &Node2) -> Kids<'_> {
+    let mut kids = Kids { k: [None; BVH_WIDTH], len: 0 };
+    match n {
+        Node2::Leaf { .. } => kids.push(n),
+        Node2::Inner { kids: two, .. } => {
+            kids.push(&two[0]);
+            kids.push(&two[1]);
+        }
+    }
+    while kids.len < BVH_WIDTH {
+        let pick = (0..kids.len)
+            .map(|i| (i, kids.get(i)))
             .filter(|(_, k)| matches!(k, Node2::Inner { .. }))
             .max_by(|a, b| a.1.bounds().area().total_cmp(&b.1.bounds().area()))
             .map(|(i, _)| i);
@@ -230,33 +323,36 @@ fn wide_children(n: &Node2) -> Vec<&Node2> {
     }
     kids
 }
-
-/// Slot of each child: the child first along octant s's diagonal goes to slot s.
-fn assign_slots<'a>(parent: &Bounds, kids: &[&'a Node2]) -> [Option<&'a Node2>; BVH_WIDTH] {
+fn assign_slots<'a>(parent: &Bounds, kids: &Kids<'a>) -> [Option<&'a Node2>; BVH_WIDTH] {
     let pc = parent.centroid();
-    let mut costs = Vec::with_capacity(kids.len() * BVH_WIDTH);
-    for (i, k) in kids.iter().enumerate() {
-        let c = k.bounds().centroid();
+    // (cost, child, slot) as one integer in the order of cost (`f32::total_cmp`), then child,
+    // then slot: sorted without a comparison function.
+    let mut costs = [0u64; BVH_WIDTH * BVH_WIDTH];
+    let mut m = 0;
+    for i in 0..kids.len {
+        let c = kids.get(i).bounds().centroid();
         for s in 0..BVH_WIDTH {
             let dir = [if s & 4 != 0 { -1.0 } else { 1.0 }, if s & 2 != 0 { -1.0 } else { 1.0 }, if s & 1 != 0 { -1.0 } else { 1.0 }];
             let cost: f32 = (0..3).map(|a| (c[a] - pc[a]) * dir[a]).sum();
-            costs.push((cost, i, s));
+            let b = cost.to_bits();
+            let ordered = if b >> 31 != 0 { !b } else { b | 1 << 31 };
+            costs[m] = (ordered as u64) << 32 | (i as u64) << 8 | s as u64;
+            m += 1;
         }
     }
-    costs.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
+    costs[..m].sort_unstable();
     let mut slots = [None; BVH_WIDTH];
-    let mut placed = vec![false; kids.len()];
-    for (_, i, s) in costs {
+    let mut placed = [false; BVH_WIDTH];
+    for &key in &costs[..m] {
+        let (i, s) = ((key >> 8 & 0xff) as usize, (key & 0xff) as usize);
         if !placed[i] && slots[s].is_none() {
-            slots[s] = Some(kids[i]);
+            slots[s] = Some(kids.get(i));
             placed[i] = true;
         }
     }
     slots
 }
-
-/// Step exponent and origin of one axis' grid, and the children's quantised coordinates on it.
-fn quantise_axis(lo: f32, hi: f32, kids: &[(f32, f32)]) -> Result<(i32, f32, Vec<(u32, u32)>)> {
+fn quantise_axis(lo: f32, hi: f32, kids: &[(f32, f32)]) -> Result<(i32, f32, [(u32, u32); BVH_WIDTH])> {
     let extent = (hi as f64 - lo as f64).max(0.0);
     let max_abs = lo.abs().max(hi.abs()) as f64;
     // Steps from 2^-100 (no subnormal coordinate anywhere) to 2^119 (255 steps stay finite).
@@ -273,9 +369,9 @@ fn quantise_axis(lo: f32, hi: f32, kids: &[(f32, f32)]) -> Result<(i32, f32, Vec
             let origin = (k * s) as f32;
             let s32 = s as f32;
             let at = |q: u32| origin + s32 * q as f32;
-            let mut qs = Vec::with_capacity(kids.len());
+            let mut qs = [(0u32, 0u32); BVH_WIDTH];
             let mut fits = true;
-            for &(cl, ch) in kids {
+            for (j, &(cl, ch)) in kids.iter().enumerate() {
                 let mut ql = ((cl as f64 - k * s) / s).floor().max(0.0) as u32;
                 let mut qh = ((ch as f64 - k * s) / s).ceil().max(0.0) as u32;
                 // As the kernels compute the coordinates: exact, and around the child's box.
@@ -289,7 +385,7 @@ fn quantise_axis(lo: f32, hi: f32, kids: &[(f32, f32)]) -> Result<(i32, f32, Vec
                     fits = false;
                     break;
                 }
-                qs.push((ql, qh));
+                qs[j] = (ql, qh);
             }
             if fits {
                 return Ok((e, origin, qs));
@@ -371,8 +467,13 @@ pub fn try_build(tris: &[Triangle]) -> Result<BvhData> {
         let mut q = [[0u32; BVH_WIDTH]; 6];
         let mut exps = 0u32;
         for a in 0..3 {
-            let kids: Vec<(f32, f32)> = slots.iter().flatten().map(|k| (k.bounds().lo[a], k.bounds().hi[a])).collect();
-            let (e, origin, qs) = quantise_axis(pb.lo[a], pb.hi[a], &kids)?;
+            let mut kids = [(0.0f32, 0.0f32); BVH_WIDTH];
+            let mut m = 0;
+            for k in slots.iter().flatten() {
+                kids[m] = (k.bounds().lo[a], k.bounds().hi[a]);
+                m += 1;
+            }
+            let (e, origin, qs) = quantise_axis(pb.lo[a], pb.hi[a], &kids[..m])?;
             node.origin_exp[a] = origin.to_bits();
             exps |= ((e + 127) as u32) << (8 * a);
             for (s, (ql, qh)) in slots.iter().enumerate().filter(|(_, k)| k.is_some()).map(|(s, _)| s).zip(qs) {
@@ -386,7 +487,7 @@ pub fn try_build(tris: &[Triangle]) -> Result<BvhData> {
         };
         let [m0, m1] = pack(&meta);
         node.bases_meta = UVec4::new(child_base as u32, tri_base as u32, m0, m1);
-        let words: Vec<[u32; 2]> = q.iter().map(pack).collect();
+        let words = q.map(|v| pack(&v));
         node.lo_x_y = UVec4::new(words[0][0], words[0][1], words[1][0], words[1][1]);
         node.lo_z_hi_x = UVec4::new(words[2][0], words[2][1], words[3][0], words[3][1]);
         node.hi_y_z = UVec4::new(words[4][0], words[4][1], words[5][0], words[5][1]);
