@@ -70,8 +70,12 @@ impl Default for BuildOptions {
     }
 }
 
-/// `BuildOptions::binned_above` by default.
-pub const DEFAULT_BINNED_ABOVE: usize = 4096;
+/// `BuildOptions::binned_above` by default: the upper levels only. Binning from 4 096 on built
+/// the conference room 17 % faster with a 3 % lower SAH cost, yet its primary rays tested 23 %
+/// more triangles and its shadow rays entered 9 % more nodes (natively, the full stack); from
+/// 65 536 on the rays do the exact sweep's work (−1 % and +1 % by nodes and tests weighted as
+/// the SAH weighs them) and the build is 7 % faster (a million small triangles: 20 %).
+pub const DEFAULT_BINNED_ABOVE: usize = 65_536;
 
 /// Candidate planes per axis of a binned node (`BuildOptions::binned_above`), less one.
 pub const BINS: usize = 128;
