@@ -224,6 +224,22 @@ struct Flat {
 }
 
 impl Flat {
+    /// Makes slot `idx` the leaf of `tris`.
+    fn leaf(&mut self, idx: usize, tris: &[u32]) {
+        self.nodes[idx] = KdNode::leaf(self.prims.len() as u32, tris.len() as u32);
+        self.prims.extend_from_slice(tris);
+        self.largest_leaf = self.largest_leaf.max(tris.len());
+    }
+
+    /// Makes slot `idx` an interior node split at `pos` along `axis`, allocating its two
+    /// children's slots; returns the first's.
+    fn interior(&mut self, idx: usize, axis: usize, pos: f32) -> usize {
+        let c = self.nodes.len();
+        self.nodes.extend([KdNode::default(); 2]);
+        self.nodes[idx] = KdNode::interior(axis as u32, pos, c as u32);
+        c
+    }
+
     /// Appends subtree `sub`, its root into slot `at` (allocated, empty) and its other nodes
     /// at the end, renumbering child indices and leaf offsets.
     fn append(&mut self, sub: Flat, at: usize) {
@@ -391,13 +407,8 @@ impl Ctx<'_> {
     /// Builds the subtree of `w` into `out`, its root into the (allocated) slot `idx`.
     fn build(&self, mut w: Work, out: &mut Flat, idx: usize) {
         let n = w.tris.len();
-        let leaf = |out: &mut Flat, tris: &[u32]| {
-            out.nodes[idx] = KdNode::leaf(out.prims.len() as u32, tris.len() as u32);
-            out.prims.extend_from_slice(tris);
-            out.largest_leaf = out.largest_leaf.max(tris.len());
-        };
         if self.leaf_at_once(n, w.depth) {
-            return leaf(out, &w.tris);
+            return out.leaf(idx, &w.tris);
         }
         if n <= SMALL {
             return self.build_small(&w.tris, &w.bounds, w.cell, w.depth, w.budget, out, idx);
@@ -405,7 +416,7 @@ impl Ctx<'_> {
         let half_area = area(&w.cell) * 0.5;
         if half_area <= 0.0 {
             // No plane can split a flat cell (neither search would find one).
-            return leaf(out, &w.tris);
+            return out.leaf(idx, &w.tris);
         }
         let leaf_cost = self.opt.k_i as f64 * n as f64 * half_area;
         let mut binned = self.binned(n);
@@ -428,19 +439,14 @@ impl Ctx<'_> {
         }
         let split = match best {
             Some(s) if s.cost < leaf_cost => s,
-            _ => return leaf(out, &w.tris),
+            _ => return out.leaf(idx, &w.tris),
         };
         let (mut left, mut right) = self.split(w, split, !binned);
-        // The children share the budget in proportion to their triangles: each keeps at least
-        // its own count (up to rounding, hence the max), and together they keep the parent's.
-        let whole = (left.tris.len() + right.tris.len()) as f64;
+        let whole = left.tris.len() + right.tris.len();
         for c in [&mut left, &mut right] {
-            let n = c.tris.len() as f64;
-            c.budget = if n == 0.0 { 0.0 } else { (c.budget * (n / whole)).max(n) };
+            c.budget = share(c.budget, c.tris.len(), whole);
         }
-        let c = out.nodes.len();
-        out.nodes.extend([KdNode::default(); 2]);
-        out.nodes[idx] = KdNode::interior(split.axis as u32, split.pos, c as u32);
+        let c = out.interior(idx, split.axis, split.pos);
         if n > self.opt.parallel_threshold {
             let (l, r) = rayon::join(|| self.subtree(left), || self.subtree(right));
             out.append(l, c);
@@ -685,13 +691,8 @@ impl Ctx<'_> {
     fn build_small(&self, tris: &[u32], bounds: &[Bounds], cell: Bounds, depth: u32, budget: f64, out: &mut Flat, idx: usize) {
         let n = tris.len();
         debug_assert!(n <= SMALL && bounds.len() == n);
-        let leaf = |out: &mut Flat| {
-            out.nodes[idx] = KdNode::leaf(out.prims.len() as u32, n as u32);
-            out.prims.extend_from_slice(tris);
-            out.largest_leaf = out.largest_leaf.max(n);
-        };
         if self.leaf_at_once(n, depth) {
-            return leaf(out);
+            return out.leaf(idx, tris);
         }
         let half_area = area(&cell) * 0.5;
         let mut best = None;
@@ -720,7 +721,7 @@ impl Ctx<'_> {
         }
         let split = match best {
             Some(s) if s.cost < self.opt.k_i as f64 * n as f64 * half_area => s,
-            _ => return leaf(out),
+            _ => return out.leaf(idx, tris),
         };
         let (k, p) = (split.axis, split.pos);
         let (mut lcell, mut rcell) = (cell, cell);
@@ -757,13 +758,9 @@ impl Ctx<'_> {
                 ir += 1;
             }
         }
-        let whole = (nl + nr) as f64;
-        let share = |c: usize| if c == 0 { 0.0 } else { (budget * (c as f64 / whole)).max(c as f64) };
-        let c = out.nodes.len();
-        out.nodes.extend([KdNode::default(); 2]);
-        out.nodes[idx] = KdNode::interior(k as u32, p, c as u32);
-        self.build_small(&lt[..nl], &lb[..if l_leaf { 0 } else { nl }], lcell, depth + 1, share(nl), out, c);
-        self.build_small(&rt[..nr], &rb[..if r_leaf { 0 } else { nr }], rcell, depth + 1, share(nr), out, c + 1);
+        let c = out.interior(idx, k, p);
+        self.build_small(&lt[..nl], &lb[..if l_leaf { 0 } else { nl }], lcell, depth + 1, share(budget, nl, nl + nr), out, c);
+        self.build_small(&rt[..nr], &rb[..if r_leaf { 0 } else { nr }], rcell, depth + 1, share(budget, nr, nl + nr), out, c + 1);
     }
 
     /// The bounds of triangle `g` (bounds `b`) clipped into child cell `cell`; where clipping
@@ -785,6 +782,17 @@ fn side(b: &Bounds, k: usize, p: f32) -> u8 {
         2
     } else {
         3
+    }
+}
+
+/// A child's share of its parent's reference `budget`: in proportion to its `n` of the
+/// children's `whole` triangles, and at least its own count (up to rounding, hence the max),
+/// so that together they keep the parent's.
+fn share(budget: f64, n: usize, whole: usize) -> f64 {
+    if n == 0 {
+        0.0
+    } else {
+        (budget * (n as f64 / whole as f64)).max(n as f64)
     }
 }
 
