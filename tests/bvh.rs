@@ -208,7 +208,7 @@ fn foreign_or_corrupt_trees_are_refused() {
     edited.triangles[5].v1[1] += 1.0;
     let e = Tracer::new(&NATIVE, &edited, None).unwrap().with_bvh(&good).err().expect("a stale BVH");
     assert!(e.to_string().contains("other triangles"), "{e}");
-    let corrupt: [(&str, fn(&mut BvhData)); 8] = [
+    let corrupt: [(&str, fn(&mut BvhData)); 9] = [
         ("shared triangles", |b| {
             let n = b.nodes.len() - 1;
             b.nodes[n].bases_meta[1] = b.nodes[0].bases_meta[1];
@@ -228,6 +228,10 @@ fn foreign_or_corrupt_trees_are_refused() {
         ("grid origin", |b| {
             let last = b.nodes.len() - 1;
             b.nodes[last].origin_exp[0] = 1.0e6f32.to_bits();
+        }),
+        ("NaN grid origin", |b| {
+            let last = b.nodes.len() - 1;
+            b.nodes[last].origin_exp[1] = f32::NAN.to_bits();
         }),
         ("grid step above the root's", |b| {
             let last = b.nodes.len() - 1;

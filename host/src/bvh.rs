@@ -390,7 +390,8 @@ fn quantise_axis(lo: f32, hi: f32, kids: &[(f32, f32)]) -> Result<(i32, f32, [(u
                 while qh <= 255 && at(qh) < ch {
                     qh += 1;
                 }
-                if qh > 255 || at(ql) > cl {
+                // Every stored coordinate finite too (a box up against f32::MAX may round past it).
+                if qh > 255 || at(ql) > cl || !at(ql).is_finite() || !at(qh).is_finite() {
                     fits = false;
                     break;
                 }
@@ -542,8 +543,10 @@ impl BvhData {
             }
             // `BoxRay::tame`'s bound holds for every node: steps at most twice the root's,
             // origins within 512 root steps of the root's.
+            // Written so that a NaN or infinite origin fails too.
             let (o, st) = (node.origin(), node.steps());
-            if (0..3).any(|a| st[a] as f64 > 2.0 * root_st[a] as f64 || (o[a] as f64 - root_o[a] as f64).abs() > 512.0 * root_st[a] as f64) {
+            let within = |a: usize| o[a].is_finite() && st[a] as f64 <= 2.0 * root_st[a] as f64 && (o[a] as f64 - root_o[a] as f64).abs() <= 512.0 * root_st[a] as f64;
+            if !(within(0) && within(1) && within(2)) {
                 bail!(InvalidInput: "BVH node {i}: a grid beyond the root's reach");
             }
             let inner = node.imask().count_ones() as usize;
