@@ -624,13 +624,8 @@ mod tests {
     /// scene), nearly always (a multiple of the step, the old origin, almost never is).
     #[test]
     fn grids_are_exact_and_flat_at_the_lower_bound() {
-        let mut x = 0x9e37_79b9u32;
-        let mut next = move || {
-            x ^= x << 13;
-            x ^= x >> 17;
-            x ^= x << 5;
-            x
-        };
+        let mut rng = kdray_shared::rng::Rng::new(3, 0);
+        let mut next = move || rng.next_u32();
         let (mut far, mut thin) = (0u32, 0u32);
         for i in 0..20_000 {
             let scale = [1e-3f32, 1.0, 300.0, 1e5][i % 4];
