@@ -347,18 +347,16 @@ impl Grid {
     fn new(node: &BvhNode, r: &BoxRay) -> Self {
         let o = node.origin();
         let st = node.steps();
-        let mut g = Grid { scale: [0.0; 3], near: [0.0; 3], far: [0.0; 3] };
-        let mut a = 0;
-        while a < 3 {
+        // Per axis (scale, near, far); written out per axis, as an array indexed at run time
+        // may be placed in a GPU's local memory.
+        let axis = |a: usize| {
             let rel = o[a] - r.origin[a];
             let offset = rel * r.inv[a];
             let err = fma(PLANE_ROUNDING, fma(255.0, st[a], rel.abs()) * r.inv[a].abs(), PLANE_FLOOR);
-            g.scale[a] = st[a] * r.inv[a];
-            g.near[a] = offset - err;
-            g.far[a] = offset + err;
-            a += 1;
-        }
-        g
+            (st[a] * r.inv[a], offset - err, offset + err)
+        };
+        let (x, y, z) = (axis(0), axis(1), axis(2));
+        Grid { scale: [x.0, y.0, z.0], near: [x.1, y.1, z.1], far: [x.2, y.2, z.2] }
     }
 }
 
