@@ -8,6 +8,8 @@
 # components, needed only to rebuild the committed SPIR-V (scripts/kernels.sh).
 # --python: also Python 3 (3.9 or later) with its venv module, for the Python package (python/,
 # scripts/python.sh).
+# --mpi: also Open MPI (mpirun, its headers) and libclang, for the `mpi` feature (render --mpi;
+# scripts/test.sh builds and tests it).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -53,6 +55,16 @@ fi
 if [ "${1:-}" = "--python" ] && ! python3 -c 'import sys, venv, ensurepip; sys.exit(sys.version_info < (3, 9))' 2>/dev/null; then
   echo "setup: no Python 3.9+ with venv found: installing python3 and python3-venv (the Python package)"
   packages+=(python3 python3-venv)
+fi
+if [ "${1:-}" = "--mpi" ]; then
+  if ! command -v mpirun >/dev/null || ! command -v mpicc >/dev/null; then
+    echo "setup: no Open MPI found: installing openmpi-bin and libopenmpi-dev (render --mpi)"
+    packages+=(openmpi-bin libopenmpi-dev)
+  fi
+  if ! ls /usr/lib/llvm-*/lib/libclang*.so* /usr/lib/x86_64-linux-gnu/libclang*.so* >/dev/null 2>&1; then
+    echo "setup: no libclang found: installing libclang-dev (the mpi crate's bindings)"
+    packages+=(libclang-dev)
+  fi
 fi
 if [ ${#packages[@]} -gt 0 ]; then
   sudo=""

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Sets up (Vulkan/lavapipe if missing) and runs every test on stable Rust, the GPU ones
+# Sets up (Vulkan/lavapipe and Open MPI if missing) and runs every test on stable Rust, the GPU ones
 # included: with KDRAY_REQUIRE_GPU=1 a test that finds no GPU adapter fails instead of
 # skipping. Also: the shader crate's entry points as plain functions on the host, the library's
 # examples, the doc tests, and a crate outside the workspace that depends on kdray as a user's
@@ -9,11 +9,12 @@
 # it (.ci/run).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-bash scripts/setup.sh
+bash scripts/setup.sh --mpi
 export KDRAY_REQUIRE_GPU=1
 # Mesa probes Wayland during adapter enumeration; without this libwayland prints errors.
 export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-${TMPDIR:-/tmp}}"
-cargo test --release --workspace "$@"
+# With the `mpi` feature: tests/mpi.rs runs `render --mpi` under mpirun (as root too, in CI).
+cargo test --release --workspace --features kdray/mpi "$@"
 cargo test --release --manifest-path shader-crate/Cargo.toml --target-dir target/shader-host "$@"
 # The API documentation builds without a warning (every public item documented).
 RUSTDOCFLAGS="-D warnings" cargo doc --release --no-deps -p kdray -p kdray-shared

@@ -44,6 +44,8 @@ pub mod integrator;
 pub mod bvh;
 pub mod kdtree;
 pub mod kernels;
+#[cfg(feature = "mpi")]
+pub mod mpi;
 pub mod runtime;
 pub mod scene;
 pub mod sort;

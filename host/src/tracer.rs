@@ -166,6 +166,11 @@ impl<'r> Tracer<'r> {
         scene.triangles.len() as u64 == self.tri_count && geometry_fingerprint(scene.triangles.iter()) == self.tri_fingerprint
     }
 
+    /// Whether `other` was made over the same triangles (the devices of one render).
+    pub fn holds_same(&self, other: &Tracer) -> bool {
+        (self.tri_count, self.tri_fingerprint) == (other.tri_count, other.tri_fingerprint)
+    }
+
     /// The scene arrays held in more than one buffer (larger than one storage binding), with
     /// their part counts: e.g. `triangles in 2 buffers, kd-tree nodes in 3`; `None` if all are
     /// whole.

@@ -426,7 +426,7 @@ impl Scene {
         let rendered = py.detach(|| -> PyResult<_> {
             let t = self.tracer(device, accel)?;
             let ctx = |e| py_err(&self.scene.name, e);
-            let paths = |o: &PathOptions| path::render_checkpointed(&t, accel, &cam, o, &report, f64::INFINITY).map(|(out, _)| (out, None)).map_err(ctx);
+            let paths = |o: &PathOptions| path::render_checkpointed(&t, accel, &cam, o, &report).map(|(out, _)| (out, None)).map_err(ctx);
             let (out, note) = match integrator.as_str() {
                 "direct" => paths(&PathOptions::direct(seed, bounces))?,
                 "path" => paths(&PathOptions::path(seed, bounces, spp))?,
@@ -442,7 +442,7 @@ impl Scene {
                     };
                     let mut map = PhotonMap::new(&t, accel, None, &self.scene, o).map_err(ctx)?;
                     let (out, s) = pm::render(&mut map, &cam, &report).map_err(ctx)?;
-                    (out, s.interrupted.map(|e| format!("{e}; the image holds the {} passes before it", s.passes)))
+                    (out, s.interrupted)
                 }
                 other => return Err(PyValueError::new_err(format!("integrator: unknown '{other}': use photon, path or direct"))),
             };

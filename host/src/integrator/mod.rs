@@ -5,6 +5,7 @@
 pub mod direct;
 pub mod path;
 pub mod photon;
+pub mod share;
 
 use kdray_shared::Hit;
 

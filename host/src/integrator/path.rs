@@ -42,17 +42,21 @@ pub struct PathOptions {
     /// from the hits. The native runtime has no rasteriser and traces those rays instead
     /// (the same image up to `raster`'s tie rule).
     pub raster: bool,
+    /// Samples per pixel per unit of work (`render_on`): a device renders a unit into films of
+    /// its own, which are then read back and added to the image. Fixed by the render, not by
+    /// the devices, so the image is the same on any number of them. `UNIT_SAMPLES` by default.
+    pub unit_samples: u32,
 }
 
 impl PathOptions {
     /// Direct lighting: one sample through each pixel centre, `bounces` specular bounces.
     pub fn direct(seed: u32, bounces: u32) -> Self {
-        PathOptions { seed, bounces, diffuse_bounces: 0, spp: 1, jitter: false, fused: true, sampler: SamplerKind::Sobol, raster: false }
+        PathOptions { seed, bounces, diffuse_bounces: 0, spp: 1, jitter: false, fused: true, sampler: SamplerKind::Sobol, raster: false, unit_samples: UNIT_SAMPLES }
     }
     /// Path tracing with next-event estimation: `spp` jittered samples, paths up to `bounces`
     /// long.
     pub fn path(seed: u32, bounces: u32, spp: u32) -> Self {
-        PathOptions { seed, bounces, diffuse_bounces: bounces, spp, jitter: true, fused: true, sampler: SamplerKind::Sobol, raster: false }
+        PathOptions { seed, bounces, diffuse_bounces: bounces, spp, jitter: true, fused: true, sampler: SamplerKind::Sobol, raster: false, unit_samples: UNIT_SAMPLES }
     }
 }
 
@@ -250,104 +254,187 @@ pub struct PathStats {
     pub samples: u32,
     /// Wall time of the render, in seconds.
     pub seconds: f64,
-    /// Why the render stopped early: what failed, and how (`render_checkpointed`).
+    /// Why the render stopped early: what failed, and how (`render_on`).
     pub interrupted: Option<String>,
+    /// Each device that failed (its name and the error): its units were rendered by the
+    /// others, or are missing (`interrupted`).
+    pub failed: Vec<String>,
+    /// Units of samples each device rendered (`render_on`'s order).
+    pub per_device: Vec<u32>,
 }
 
-/// Seconds between the film's read-backs in `render_checkpointed`.
-pub const CHECKPOINT_SECONDS: f64 = 1.0;
+/// Samples per pixel per unit of work by default (`PathOptions::unit_samples`).
+pub const UNIT_SAMPLES: u32 = 16;
 
 /// Renders `cam`'s image: `o.spp` samples per pixel, as many per dispatch as the batch size
-/// allows (fewer, larger dispatches). An error if anything fails (`render_checkpointed` keeps
-/// what was done).
+/// and the unit allow (fewer, larger dispatches). An error if anything fails
+/// (`render_checkpointed` keeps what was done).
 pub fn render(t: &Tracer, accel: Accel, cam: &Camera, o: &PathOptions, progress: &dyn Progress) -> Result<RenderOutput> {
-    // No checkpoint: nothing to keep, so any failure is the error itself.
-    Ok(render_checkpointed(t, accel, cam, o, progress, f64::INFINITY)?.0)
+    let (out, stats) = render_on(&[t], accel, cam, o, progress)?;
+    match stats.interrupted {
+        Some(why) => bail!(DeviceLost: "{why}"),
+        None => Ok(out),
+    }
 }
 
-/// `render`, progressively: every batch of pixels gets its sample groups in turn (each batch
-/// its own film, the paths' buffers shared), and about every `checkpoint_seconds` the films
-/// are read back. If a submission or read-back fails after a checkpoint (a lost device), the
-/// render returns the checkpoint's image, of fewer samples per pixel, with the error in
-/// `PathStats::interrupted`; a failure before the first checkpoint is an error.
-pub fn render_checkpointed(t: &Tracer, accel: Accel, cam: &Camera, o: &PathOptions, progress: &dyn Progress, checkpoint_seconds: f64) -> Result<(RenderOutput, PathStats)> {
-    t.check(accel)?;
+/// `render`, keeping what was done: if the device fails after a unit of samples was read
+/// back, the render returns the image of the units before (fewer samples per pixel), with the
+/// error in `PathStats::interrupted`; a failure in the first unit is an error.
+pub fn render_checkpointed(t: &Tracer, accel: Accel, cam: &Camera, o: &PathOptions, progress: &dyn Progress) -> Result<(RenderOutput, PathStats)> {
+    render_on(&[t], accel, cam, o, progress)
+}
+
+/// Renders `cam`'s image on every tracer's runtime at once (one tracer per device, all made
+/// over the same scene). The samples go in units of `PathOptions::unit_samples` per pixel
+/// (`share`): a device takes the next unit when it is free and renders its samples, batch
+/// by batch of pixels (each batch its own film, the paths' buffers shared), into its films
+/// from zero, then reads them back; the films are summed exactly (`share::FilmSum`), so the image is the
+/// same, bit for bit, on one device or several of one kind. A device that fails gives its
+/// units to the others (`PathStats::failed`); with none left, the render returns the image of
+/// the units delivered, with the error in `PathStats::interrupted` (none delivered: the
+/// error). `progress` counts samples (a pixel's each).
+pub fn render_on(ts: &[&Tracer], accel: Accel, cam: &Camera, o: &PathOptions, progress: &dyn Progress) -> Result<(RenderOutput, PathStats)> {
+    let Some(&first) = ts.first() else { bail!(InvalidInput: "a render needs at least one device") };
     if o.spp == 0 {
         bail!(InvalidInput: "at least one sample per pixel is needed");
     }
-    let rt = t.rt;
+    if o.unit_samples == 0 {
+        bail!(InvalidInput: "a unit of work needs at least one sample per pixel");
+    }
+    for t in ts {
+        t.check(accel)?;
+        if o.raster {
+            t.raster_method(accel)?;
+        }
+        if !t.holds_same(first) {
+            bail!(InvalidInput: "the devices of a render need tracers over the same scene");
+        }
+    }
     let start = std::time::Instant::now();
     let n = (cam.width * cam.height) as usize;
-    if o.raster {
-        t.raster_method(accel)?;
-    }
-    // Rasterised primaries: one batch of the whole image, one sample per pixel a dispatch.
-    let b = if o.raster { n } else { t.batch_size(accel, n) };
-    if o.raster && (n as u64 * std::mem::size_of::<ShadeTerms>() as u64 > rt.max_binding() || n > t.batch_size(accel, n).max(1 << 22)) {
-        bail!(TooLarge: "--primary raster renders the whole image in one batch: {} x {} pixels are too many for {}", cam.width, cam.height, rt.name());
-    }
-    let per_dispatch = if o.raster { 1 } else { (t.batch_size(accel, b * o.spp as usize) / b).clamp(1, o.spp as usize) as u32 };
-    let raster_visible = if o.raster { Some(rt.alloc::<u32>("visibility", t.raster_params(cam)?.row_words as usize * cam.height as usize)?) } else { None };
-    let groups = o.spp.div_ceil(per_dispatch);
-    let batches: Vec<(usize, usize)> = (0..n).step_by(b).map(|f| (f, b.min(n - f))).collect();
-    let work = FrameBuffers::work(t, accel, b * per_dispatch as usize)?;
-    let films: Vec<FilmBuffers> = batches.iter().map(|&(_, c)| FilmBuffers::new(t, c * per_dispatch as usize, c)).collect::<Result<_>>()?;
-    let film_refs: Vec<&FilmBuffers> = films.iter().collect();
+    let mut devices: Vec<(&Tracer, PathBuffers)> = ts.iter().map(|&t| Ok((t, PathBuffers::new(t, accel, cam, o)?))).collect::<Result<_>>()?;
+    let names: Vec<String> = ts.iter().map(|t| t.rt.name()).collect();
     progress.start(n as u64 * o.spp as u64);
-    let mut saved: Option<(RenderOutput, u32)> = None;
-    let mut saved_at = 0.0;
-    let fail = |saved: Option<(RenderOutput, u32)>, what: String, e: crate::Error| match saved {
-        Some((out, samples)) => Ok((out, PathStats { samples, seconds: start.elapsed().as_secs_f64(), interrupted: Some(format!("{what}: {e}")) })),
-        None => Err(e),
-    };
-    let mut done = 0u32;
-    for g in 0..groups {
-        let s = per_dispatch.min(o.spp - g * per_dispatch);
-        let submitted = (|| -> Result<()> {
-            let mut c = rt.begin();
-            let mut recorded = 0;
-            for (&(first, count), film) in batches.iter().zip(&films) {
-                let mut p = RenderParams { sample_base: g * per_dispatch, ..with_samples(params(t, cam, o, first, count, g), s) };
-                if let Some(visible) = &raster_visible {
-                    // The group's camera: every pixel's centre moved to the group's point.
-                    p.camera = raster::shifted(cam, if o.jitter { raster::group_offset(g) } else { [0.5, 0.5] });
-                    p.flags = (p.flags & !RENDER_JITTER) | RENDER_PRIMARY_GIVEN;
-                    recorded += rt.dispatch_all(&mut c, t.raster_passes(accel, &t.raster_params(&p.camera)?, visible, &film.primary_hits)?)?;
-                }
-                recorded += rt.dispatch_all(&mut c, eye_passes_into(t, accel, &p, &work, film, o.fused)?)?;
-                rt.dispatch(&mut c, &Film { params: p, paths: &work.paths, radiance: &film.radiance })?;
-                if recorded >= DISPATCHES_PER_SUBMIT {
-                    rt.submit(std::mem::replace(&mut c, rt.begin()))?;
-                    recorded = 0;
-                }
-            }
-            rt.submit(c)
-        })();
-        if let Err(e) = submitted {
-            return fail(saved, format!("sample group {g} failed"), e);
+    let shared = super::share::share(&mut devices, o.spp.div_ceil(o.unit_samples), super::share::Part::WHOLE, n, |(t, b), hand| path_worker(t, accel, cam, o, b, hand), |k| {
+        progress.advance(k);
+        progress.cancelled()
+    })?;
+    let samples = shared.stats.iter().map(|s| s.1).sum();
+    let failed: Vec<String> = shared.failed.iter().map(|(i, e)| format!("{}: {e}", names[*i])).collect();
+    if shared.stats.is_empty() {
+        return Err(match shared.failed.into_iter().next() {
+            Some((i, e)) if names.len() > 1 => e.context(&names[i]),
+            Some((_, e)) => e,
+            None => crate::error::err!(InvalidInput: "the render stopped before its first sample"),
+        });
+    }
+    let interrupted = (!shared.missing.is_empty() && !failed.is_empty()).then(|| {
+        format!("{} (no device left: the image holds {samples} of the {} samples per pixel)", failed.join("; "), o.spp)
+    });
+    let mut out = RenderOutput::new(cam.width, cam.height);
+    place(&mut out, cam, 0, shared.hits.unwrap_or_else(|| vec![Hit::NONE; n]), shared.sum.film());
+    Ok((out, PathStats { samples, seconds: start.elapsed().as_secs_f64(), interrupted, failed, per_device: shared.per_device }))
+}
+
+/// One device's buffers of a path-traced render: the pixels in batches (each with its film),
+/// the paths' buffers (shared by the batches), and the samples of a dispatch.
+struct PathBuffers {
+    batches: Vec<(usize, usize)>,
+    per_dispatch: u32,
+    work: FrameBuffers,
+    films: Vec<FilmBuffers>,
+    raster_visible: Option<Buffer<u32>>,
+}
+
+impl PathBuffers {
+    fn new(t: &Tracer, accel: Accel, cam: &Camera, o: &PathOptions) -> Result<Self> {
+        let rt = t.rt;
+        let n = (cam.width * cam.height) as usize;
+        // Rasterised primaries: one batch of the whole image, one sample per pixel a dispatch.
+        let b = if o.raster { n } else { t.batch_size(accel, n) };
+        if o.raster && (n as u64 * std::mem::size_of::<ShadeTerms>() as u64 > rt.max_binding() || n > t.batch_size(accel, n).max(1 << 22)) {
+            bail!(TooLarge: "--primary raster renders the whole image in one batch: {} x {} pixels are too many for {}", cam.width, cam.height, rt.name());
         }
-        done += s;
-        progress.advance(n as u64 * s as u64);
-        if g + 1 < groups && progress.cancelled() {
-            break;
+        let unit = o.unit_samples.min(o.spp);
+        let per_dispatch = if o.raster { 1 } else { (t.batch_size(accel, b * unit as usize) / b).clamp(1, unit as usize) as u32 };
+        let raster_visible = if o.raster { Some(rt.alloc::<u32>("visibility", t.raster_params(cam)?.row_words as usize * cam.height as usize)?) } else { None };
+        let batches: Vec<(usize, usize)> = (0..n).step_by(b).map(|f| (f, b.min(n - f))).collect();
+        let work = FrameBuffers::work(t, accel, b * per_dispatch as usize)?;
+        let films = batches.iter().map(|&(_, c)| FilmBuffers::new(t, c * per_dispatch as usize, c)).collect::<Result<_>>()?;
+        Ok(PathBuffers { batches, per_dispatch, work, films, raster_visible })
+    }
+}
+
+/// One device's share of a path-traced render (`render_on`): takes units of samples and
+/// renders them, a group of `per_dispatch` samples per pixel at a time, every batch in turn.
+fn path_worker(t: &Tracer, accel: Accel, cam: &Camera, o: &PathOptions, b: &PathBuffers, hand: &mut super::share::Hand<'_, u32>) -> Result<()> {
+    let rt = t.rt;
+    let n = (cam.width * cam.height) as u64;
+    while let Some(u) = hand.take() {
+        let (first_sample, end) = (u * o.unit_samples, ((u + 1) * o.unit_samples).min(o.spp));
+        let mut s0 = first_sample;
+        while s0 < end && !(s0 > first_sample && hand.stopping()) {
+            let s = b.per_dispatch.min(end - s0);
+            let submitted = (|| -> Result<()> {
+                let mut c = rt.begin();
+                let mut recorded = 0;
+                for (&(first, count), film) in b.batches.iter().zip(&b.films) {
+                    if s0 == first_sample {
+                        rt.clear(&mut c, film.radiance.raw())?;
+                    }
+                    let mut p = with_samples(params(t, cam, o, first, count, s0), s);
+                    if let Some(visible) = &b.raster_visible {
+                        // The group's camera: every pixel's centre moved to the group's point.
+                        p.camera = raster::shifted(cam, if o.jitter { raster::group_offset(s0) } else { [0.5, 0.5] });
+                        p.flags = (p.flags & !RENDER_JITTER) | RENDER_PRIMARY_GIVEN;
+                        recorded += rt.dispatch_all(&mut c, t.raster_passes(accel, &t.raster_params(&p.camera)?, visible, &film.primary_hits)?)?;
+                    }
+                    recorded += rt.dispatch_all(&mut c, eye_passes_into(t, accel, &p, &b.work, film, o.fused)?)?;
+                    rt.dispatch(&mut c, &Film { params: p, paths: &b.work.paths, radiance: &film.radiance })?;
+                    if recorded >= DISPATCHES_PER_SUBMIT {
+                        rt.submit(std::mem::replace(&mut c, rt.begin()))?;
+                        recorded = 0;
+                    }
+                }
+                rt.submit(c)
+            })();
+            submitted.map_err(|e| e.context(format!("samples {s0}..{} failed", s0 + s)))?;
+            s0 += s;
+            hand.advance(n * s as u64);
         }
-        let secs = start.elapsed().as_secs_f64();
-        if g + 1 < groups && secs - saved_at >= checkpoint_seconds {
-            match read_films(t, cam, &batches, &film_refs) {
-                Ok((out, _)) => saved = Some((out, done)),
-                Err(e) => return fail(saved, format!("reading back the image after {done} samples per pixel failed"), e),
-            }
-            saved_at = secs;
+        let film_refs: Vec<&FilmBuffers> = b.films.iter().collect();
+        let (film, hits) = read_raw_films(t, &b.batches, &film_refs, u == 0).map_err(|e| e.context("reading back the image failed"))?;
+        hand.deliver(super::share::Unit { index: u, film, hits, stats: s0 - first_sample });
+        if hand.stopping() {
+            return Ok(());
         }
     }
-    match read_films(t, cam, &batches, &film_refs) {
-        Ok((out, _)) => Ok((out, PathStats { samples: done, seconds: start.elapsed().as_secs_f64(), interrupted: None })),
-        Err(e) => fail(saved, "reading back the image failed".into(), e),
-    }
+    Ok(())
 }
 
 /// Dispatches recorded into one submission (bounds the size of a command buffer).
 const DISPATCHES_PER_SUBMIT: usize = 2048;
+
+/// The films of `batches`, per pixel in ray order, and (with `hits`) their primary hits.
+pub fn read_raw_films(t: &Tracer, batches: &[(usize, usize)], films: &[&FilmBuffers], hits: bool) -> Result<(Vec<[f32; 4]>, Option<Vec<Hit>>)> {
+    let rt = t.rt;
+    let mut c = rt.begin();
+    let pending: Vec<_> = batches
+        .iter()
+        .zip(films)
+        .map(|(&(_, count), f)| Ok((if hits { Some(rt.read_back_of(&mut c, &f.primary_hits, count)?) } else { None }, rt.read_back_of(&mut c, &f.radiance, count)?)))
+        .collect::<Result<_>>()?;
+    rt.submit(c)?;
+    let mut film = Vec::new();
+    let mut hit = Vec::new();
+    for (h, r) in pending {
+        film.extend(cast::<[f32; 4]>(rt.wait(r)?));
+        if let Some(h) = h {
+            hit.extend(cast::<Hit>(rt.wait(h)?));
+        }
+    }
+    Ok((film, hits.then_some(hit)))
+}
 
 /// The image of the films of `batches` and the films' sums (each batch's pixels): their
 /// primary hits and radiance, read back.

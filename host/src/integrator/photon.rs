@@ -20,7 +20,7 @@
 //! store more, which the host sees one pass late (the render then goes back to its last
 //! checkpoint: passes are deterministic, so the image is the same).
 use super::path::{self, FrameBuffers, PathOptions};
-use super::{Progress, RenderOutput, SamplerKind};
+use super::{share, Progress, RenderOutput, SamplerKind};
 use crate::accel::{Accel, Structure};
 use crate::kdtree::KdTreeData;
 use crate::kernels::{DispatchArgs, EmitPhotons, Film, Gather, IndexBinds, MarkEdges, PhotonBounce, PhotonKeys, PlacePhotons, TraceMethod, TracePhotons};
@@ -96,10 +96,11 @@ pub struct PhotonOptions {
     /// Stop after the pass that ends past this many seconds (and the one already submitted
     /// behind it).
     pub time_limit: Option<f64>,
-    /// Seconds between checkpoints: after a pass that ends this long after the last one, the
-    /// film is read back, so that a pass that fails (a lost device, say) loses only the passes
-    /// since (`PhotonStats::interrupted`). 0: after every pass.
-    pub checkpoint_seconds: f64,
+    /// Passes per unit of work (`render_on`): a device renders a unit's passes into a film of
+    /// its own, which is then read back and added to the image. Fixed by the render, not by
+    /// the devices, so the image is the same on any number of them; a failure loses at most
+    /// the units in hand (another device renders them again). `UNIT_PASSES` by default.
+    pub unit_passes: u32,
     /// The first pass's gather radius (scene units); default: about `PHOTONS_PER_GATHER` photons
     /// per gather.
     pub radius: Option<f32>,
@@ -167,7 +168,7 @@ impl Default for PhotonOptions {
             photons: 1 << 20,
             passes: 16,
             time_limit: None,
-            checkpoint_seconds: 1.0,
+            unit_passes: UNIT_PASSES,
             radius: None,
             caustic_radius: 0.5,
             alpha: 2.0 / 3.0,
@@ -202,13 +203,18 @@ pub struct PhotonStats {
     pub emitted: u64,
     /// Photons stored in the map, over all passes.
     pub stored: u64,
-    /// The last pass's gather radius (global map).
+    /// The last pass's gather radius (global map; 0 when no pass was rendered).
     pub last_radius: f32,
     /// Wall time from the first pass to the image read back, in seconds.
     pub seconds: f64,
-    /// Why the render stopped early, if a pass failed after a checkpoint: what failed, and
-    /// how. The image is then the last checkpoint's, of the `passes` before the failure.
+    /// Why the render stopped early, if every device failed with units of passes still to
+    /// render: what failed, and how. The image is then that of the units delivered (`passes`).
     pub interrupted: Option<String>,
+    /// Each device that failed (its name and the error): its units were rendered by the
+    /// others, or are missing (`interrupted`).
+    pub failed: Vec<String>,
+    /// Units of passes each device rendered (`render_on`'s order).
+    pub per_device: Vec<u32>,
 }
 
 /// The seed of pass `pass`.
@@ -841,7 +847,7 @@ impl GatherPoints {
 /// Eye-path parameters of pass `pass`: `o.eye_samples` jittered samples per pixel, ending at
 /// gather points.
 pub fn eye_params(t: &Tracer, cam: &Camera, o: &PhotonOptions, first: usize, count: usize, pass: u32) -> RenderParams {
-    let po = PathOptions { seed: pass_seed(o.seed ^ 0x0E7E_0E7E, pass), bounces: o.eye_bounces, diffuse_bounces: 0, spp: 1, jitter: true, fused: o.fused, sampler: o.sampler, raster: false };
+    let po = PathOptions { seed: pass_seed(o.seed ^ 0x0E7E_0E7E, pass), bounces: o.eye_bounces, diffuse_bounces: 0, spp: 1, jitter: true, fused: o.fused, sampler: o.sampler, raster: false, unit_samples: 1 };
     let mut p = path::params(t, cam, &po, first, count, 0);
     p.seed = po.seed;
     p.sample = pass;
@@ -914,178 +920,357 @@ fn record_eye<'a>(c: &mut crate::runtime::Commands, map: &'a PhotonMap, p: &Rend
 /// overflow found one pass later still).
 const IN_FLIGHT: usize = 3;
 
-/// Renders `cam`'s image by progressive photon mapping; `progress` counts passes.
-///
-/// Each pass is one submission: its photons traced and indexed, its eye samples gathered into
-/// the film, and its photon count read back. The count is checked while the next pass runs,
-/// so the device never waits for the host between passes. A pass whose photons did not fit
-/// the records (rare: the records are sized from the first pass with a margin) lost photons:
-/// the records grow and the render goes back to the last checkpoint (or the start), whose film
-/// is written back — passes are deterministic, so the image is the same as if they had fit.
-///
-/// The film is read back at checkpoints (`PhotonOptions::checkpoint_seconds`). If a pass fails
-/// after one, the render returns the image of the passes up to it, with the error in
-/// `PhotonStats::interrupted`; a failure before the first checkpoint is an error.
+/// Passes per unit of work by default (`PhotonOptions::unit_passes`).
+pub const UNIT_PASSES: u32 = 4;
+
+/// Renders `cam`'s image by progressive photon mapping on `map`'s runtime; `progress` counts
+/// passes. `render_on` with one device.
 pub fn render(map: &mut PhotonMap, cam: &Camera, progress: &dyn Progress) -> Result<(RenderOutput, PhotonStats)> {
-    let cam = &Camera { order: if map.o.tiles { ORDER_TILES } else { cam.order }, ..*cam };
-    let t = map.t;
-    let rt = t.rt;
-    let accel = map.accel;
-    let n = (cam.width * cam.height) as usize;
-    let e = map.o.eye_samples as usize;
-    let b = (t.batch_size(accel, n * e) / e).max(1);
-    let batches: Vec<(usize, usize)> = (0..n).step_by(b).map(|f| (f, b.min(n - f))).collect();
-    let fbs: Vec<FrameBuffers> = batches.iter().map(|&(_, c)| FrameBuffers::new(t, accel, c * e)).collect::<Result<_>>()?;
-    let gps: Vec<GatherPoints> = match map.o.final_gather {
-        FinalGather::Edges if map.o.list_points => batches.iter().map(|&(_, c)| GatherPoints::new(t, c * e)).collect::<Result<_>>()?,
-        _ => (0..batches.len()).map(|_| GatherPoints::new(t, 0)).collect::<Result<_>>()?,
-    };
-    if !rt.is_native() {
-        // A device creates a kernel's pipeline when a pass first records it (the driver
-        // compiles: 0.12–0.13 s for a pass's eight kernels on the H200, cached or not). Pass 0
-        // recorded once and dropped unsubmitted makes them ready before the render's clock
-        // (and its time limit) starts; the caller's own clock still sees the cost. (Natively,
-        // recording runs the kernels.)
-        let mut c = rt.begin();
-        record_pass(map, cam, 0, &batches, &fbs, &gps, &mut c)?;
+    render_on(std::slice::from_mut(map), cam, progress)
+}
+
+/// Renders `cam`'s image by progressive photon mapping on every map's runtime at once (one map
+/// per device, all made with the same options over the same scene); `progress` counts passes.
+///
+/// The passes go in units of `PhotonOptions::unit_passes` (`share`): a device takes the next
+/// unit when it is free, renders its passes into its film from zero and hands the film over;
+/// the films are summed exactly (`share::FilmSum`), so the image is the same, bit for bit, on one device or
+/// several of one kind. Each pass is one submission: its photons traced and indexed, its eye
+/// samples gathered into the film, its photon count read back (a unit's last pass reads the
+/// film back too). The count is checked while the next passes run, so a device never waits
+/// for the host between passes. A pass whose photons did not fit the records (rare: the
+/// records are sized from the first pass with a margin) lost photons: the records grow and
+/// the device renders its units in hand again from their first passes — passes are
+/// deterministic, so the image is the same as if they had fit.
+///
+/// A device that fails gives its units to the others (`PhotonStats::failed` says which and
+/// why). With none left, the render returns the image of the units delivered, with the error
+/// in `PhotonStats::interrupted`; with none delivered, the error.
+pub fn render_on(maps: &mut [PhotonMap], cam: &Camera, progress: &dyn Progress) -> Result<(RenderOutput, PhotonStats)> {
+    let part = render_part(maps, cam, progress, share::Part::WHOLE)?;
+    Ok((part.image(), part.stats))
+}
+
+/// One process's share of a photon render (`render_part`): the exact sum of its units'
+/// films, unit 0's primary hits (the first part's), its counts, and the camera in the order
+/// the rays were traced. Parts of one render add up (`add`) to the whole render's.
+pub struct PhotonPart {
+    /// The films of the part's units, summed.
+    pub sum: share::FilmSum,
+    /// Unit 0's primary hits, where this part rendered it.
+    pub hits: Option<Vec<Hit>>,
+    /// The part's counts (`seconds`: its own wall time).
+    pub stats: PhotonStats,
+    /// The camera the rays were traced with (`PhotonOptions::tiles` orders them).
+    pub camera: Camera,
+    /// The render's passes (to report a part that failed).
+    pub passes: u32,
+}
+
+impl PhotonPart {
+    /// Adds another part of the same render.
+    pub fn add(&mut self, other: &PhotonPart) {
+        self.sum.add_sums(&other.sum);
+        if self.hits.is_none() {
+            self.hits = other.hits.clone();
+        }
+        let (a, b) = (&mut self.stats, &other.stats);
+        a.passes += b.passes;
+        a.emitted += b.emitted;
+        a.stored += b.stored;
+        // The radius shrinks pass by pass: the last pass's is the smallest (0: no pass).
+        if b.last_radius > 0.0 && (a.last_radius == 0.0 || b.last_radius < a.last_radius) {
+            a.last_radius = b.last_radius;
+        }
+        a.seconds = a.seconds.max(b.seconds);
+        a.failed.extend(b.failed.iter().cloned());
+        a.per_device.extend(b.per_device.iter().copied());
+        a.interrupted = match (a.interrupted.take(), &b.interrupted) {
+            (Some(x), Some(y)) => Some(format!("{x}; {y}")),
+            (x, y) => x.or(y.clone()),
+        };
     }
-    progress.start(map.o.passes as u64);
+
+    /// The image of the units summed.
+    pub fn image(&self) -> RenderOutput {
+        let cam = &self.camera;
+        let n = (cam.width * cam.height) as usize;
+        let mut out = RenderOutput::new(cam.width, cam.height);
+        path::place(&mut out, cam, 0, self.hits.clone().unwrap_or_else(|| vec![Hit::NONE; n]), self.sum.film());
+        out
+    }
+}
+
+/// `render_on` for the units of `part` only (an MPI rank's share: unit `part.rank`, then every
+/// `part.ranks`-th): the parts of all ranks, added, are the whole render, bit for bit. A part
+/// with no unit is an empty one, not an error.
+pub fn render_part(maps: &mut [PhotonMap], cam: &Camera, progress: &dyn Progress, part: share::Part) -> Result<PhotonPart> {
+    let Some(first) = maps.first() else { bail!(InvalidInput: "a render needs at least one device") };
+    let o = first.o.clone();
+    for m in &maps[1..] {
+        let same = (m.o.passes, m.o.unit_passes, m.o.photons, m.o.seed, m.o.alpha, m.o.eye_samples) == (o.passes, o.unit_passes, o.photons, o.seed, o.alpha, o.eye_samples);
+        if !same || m.r0 != first.r0 || !m.t.holds_same(first.t) {
+            bail!(InvalidInput: "the devices of a render need photon maps made with the same options over the same scene");
+        }
+    }
+    if o.unit_passes == 0 {
+        bail!(InvalidInput: "a unit of work needs at least one pass");
+    }
+    let r0 = first.r0;
+    let cam = &ray_camera(&o, cam);
+    let n = (cam.width * cam.height) as usize;
+    let names: Vec<String> = maps.iter().map(|m| m.t.rt.name()).collect();
+    // Each device's buffers and its first pipelines (before the clock starts).
+    let mut devices: Vec<(&mut PhotonMap, Option<EyeBuffers>)> = maps.iter_mut().map(|m| (m, None)).collect();
+    let ready: Vec<Result<()>> = std::thread::scope(|s| {
+        let jobs: Vec<_> = devices.iter_mut().map(|(m, b)| s.spawn(move || EyeBuffers::new(m, cam).map(|e| *b = Some(e)))).collect();
+        jobs.into_iter().map(|j| j.join().expect("setting up a device's buffers panicked")).collect()
+    });
+    for r in ready {
+        r?;
+    }
+    let units = o.passes.div_ceil(o.unit_passes);
+    // The part's passes (all of them in one process).
+    let mine: u32 = (0..units).filter(|&u| part.holds(u)).map(|u| (o.passes - u * o.unit_passes).min(o.unit_passes)).sum();
+    progress.start(mine as u64);
     let start = Instant::now();
     let mut stats = PhotonStats::default();
-    // The last checkpoint, and when it was taken.
-    let mut saved: Option<Checkpoint> = None;
-    let mut saved_at = 0.0;
-    // A failure: the last checkpoint with what failed, or the error if there is none.
-    let fail = |saved: Option<Checkpoint>, what: String, e: crate::Error| match saved {
-        Some(cp) => {
-            let mut st = cp.stats;
-            st.interrupted = Some(format!("{what}: {e}"));
-            st.seconds = start.elapsed().as_secs_f64();
-            Ok((cp.out, st))
+    let shared = share::share(
+        &mut devices,
+        units,
+        part,
+        n,
+        |(map, eye), hand| photon_worker(map, cam, eye.as_ref().expect("buffers made"), hand),
+        |k| {
+            stats.passes += k as u32;
+            stats.emitted += k * o.photons as u64;
+            progress.advance(k);
+            let secs = start.elapsed().as_secs_f64();
+            progress.status(&format!("{:.1} M photons/s", stats.emitted as f64 / secs / 1e6));
+            o.time_limit.is_some_and(|l| secs >= l) || progress.cancelled()
+        },
+    )?;
+    let mut stats = PhotonStats { seconds: start.elapsed().as_secs_f64(), ..Default::default() };
+    let mut last_pass = None;
+    for (_, u) in &shared.stats {
+        stats.passes += u.passes;
+        stats.emitted += u.emitted;
+        stats.stored += u.stored;
+        last_pass = last_pass.max(Some(u.last_pass));
+    }
+    stats.last_radius = last_pass.map_or(0.0, |p| pass_radius(r0, o.alpha, p));
+    stats.failed = shared.failed.iter().map(|(i, e)| format!("{}: {e}", names[*i])).collect();
+    stats.per_device = shared.per_device.clone();
+    if shared.stats.is_empty() {
+        if let Some((i, e)) = shared.failed.into_iter().next() {
+            return Err(if names.len() > 1 { e.context(&names[i]) } else { e });
         }
-        None => Err(e),
-    };
-    // The next pass to submit; the passes submitted and not yet checked (at most `IN_FLIGHT`:
-    // the device runs one while the host waits for an earlier one's count), oldest first;
-    // whether the render is complete once they are checked.
-    let mut next = 0u32;
-    let mut flight: VecDeque<(u32, Pending)> = VecDeque::new();
-    let mut done = false;
-    loop {
-        let secs = start.elapsed().as_secs_f64();
-        // A checkpoint reads the film of checked passes alone: nothing new goes in flight
-        // while one is due.
-        let checkpoint_due = stats.passes > 0 && secs - saved_at >= map.o.checkpoint_seconds;
-        if !done && next < map.o.passes && flight.len() < IN_FLIGHT && !(checkpoint_due && !flight.is_empty()) {
-            match submit_pass(map, cam, next, &batches, &fbs, &gps) {
-                Ok(p) => flight.push_back((next, p)),
-                Err(e) => return fail(saved, format!("pass {next} failed"), e),
-            }
-            next += 1;
-            if flight.len() < IN_FLIGHT && !checkpoint_due && next < map.o.passes {
-                continue;
-            }
-        }
-        let Some((k, p)) = flight.pop_front() else { break };
-        let stored = match rt.wait(p) {
-            Ok(v) => v[0],
-            Err(e) => return fail(saved, format!("pass {k} failed"), e),
+    }
+    if !shared.missing.is_empty() && !stats.failed.is_empty() {
+        stats.interrupted = Some(format!("{} (no device left: the image holds {} of the {} passes)", stats.failed.join("; "), stats.passes, o.passes));
+    }
+    Ok(PhotonPart { sum: shared.sum, hits: shared.hits, stats, camera: *cam, passes: o.passes })
+}
+
+/// The camera as a photon render traces it: in tiles (`PhotonOptions::tiles`) or as given.
+pub fn ray_camera(o: &PhotonOptions, cam: &Camera) -> Camera {
+    Camera { order: if o.tiles { ORDER_TILES } else { cam.order }, ..*cam }
+}
+
+/// The counts of one unit of passes.
+#[derive(Clone, Copy, Default)]
+struct UnitStats {
+    passes: u32,
+    emitted: u64,
+    stored: u64,
+    last_pass: u32,
+}
+
+/// One device's eye buffers: the pixels in batches (each with its paths and film).
+struct EyeBuffers {
+    batches: Vec<(usize, usize)>,
+    fbs: Vec<FrameBuffers>,
+    gps: Vec<GatherPoints>,
+}
+
+impl EyeBuffers {
+    fn new(map: &mut PhotonMap, cam: &Camera) -> Result<Self> {
+        let t = map.t;
+        let e = map.o.eye_samples as usize;
+        let n = (cam.width * cam.height) as usize;
+        let b = (t.batch_size(map.accel, n * e) / e).max(1);
+        let batches: Vec<(usize, usize)> = (0..n).step_by(b).map(|f| (f, b.min(n - f))).collect();
+        let fbs: Vec<FrameBuffers> = batches.iter().map(|&(_, c)| FrameBuffers::new(t, map.accel, c * e)).collect::<Result<_>>()?;
+        let gps: Vec<GatherPoints> = match map.o.final_gather {
+            FinalGather::Edges if map.o.list_points => batches.iter().map(|&(_, c)| GatherPoints::new(t, c * e)).collect::<Result<_>>()?,
+            _ => (0..batches.len()).map(|_| GatherPoints::new(t, 0)).collect::<Result<_>>()?,
         };
-        if stored > map.capacity {
-            // Pass k lost photons (those after it may have too): grow the records and go
-            // back to the last checkpoint's film.
-            flight.clear();
-            let restart = rt.finish().and_then(|_| map.grow(stored)).and_then(|_| restore(t, &fbs, saved.as_ref()));
-            if let Err(e) = restart {
-                return fail(saved, format!("growing the photon records after pass {k} failed"), e);
+        let eye = EyeBuffers { batches, fbs, gps };
+        if !t.rt.is_native() {
+            // A device creates a kernel's pipeline when a pass first records it (the driver
+            // compiles: 0.12–0.13 s for a pass's eight kernels on the H200, cached or not).
+            // Pass 0 recorded once and dropped unsubmitted makes them ready before the
+            // render's clock (and its time limit) starts; the caller's own clock still sees
+            // the cost. (Natively, recording runs the kernels.)
+            let mut c = t.rt.begin();
+            record_pass(map, cam, 0, &eye, &mut c)?;
+        }
+        Ok(eye)
+    }
+}
+
+/// A pass submitted and not yet checked: its unit's place among the device's units in hand,
+/// its photon count, and (a unit's last pass) the film's and hits' read-backs.
+struct Flight {
+    pass: u32,
+    count: Pending,
+    film: Option<(Vec<Pending>, Vec<Pending>)>,
+}
+
+/// One device's share of a photon render (`render_on`): takes units of passes and renders
+/// them, `IN_FLIGHT` passes ahead of the checks.
+fn photon_worker(map: &mut PhotonMap, cam: &Camera, eye: &EyeBuffers, hand: &mut share::Hand<'_, UnitStats>) -> Result<()> {
+    let rt = map.t.rt;
+    let (per, passes) = (map.o.unit_passes, map.o.passes);
+    let range = |u: u32| (u * per, ((u + 1) * per).min(passes));
+    // Units in hand, oldest first (the first is the one being checked), the next of them to
+    // submit passes of, and its next pass.
+    let mut hold: VecDeque<u32> = VecDeque::new();
+    let mut sub = 0usize;
+    let mut next = 0u32;
+    let mut flight: VecDeque<Flight> = VecDeque::new();
+    let mut counts = UnitStats::default();
+    // A unit whose passes are all checked, its film's read-back not yet waited for.
+    let mut reading: Option<(u32, Vec<Pending>, Vec<Pending>, UnitStats)> = None;
+    loop {
+        if flight.len() < IN_FLIGHT && !hand.stopping() {
+            if sub == hold.len() {
+                if let Some(u) = hand.take() {
+                    hold.push_back(u);
+                    next = range(u).0;
+                }
             }
-            (next, stats) = match &saved {
-                Some(cp) => (cp.stats.passes, cp.stats.clone()),
-                None => (0, PhotonStats::default()),
-            };
-            done = false;
+            if sub < hold.len() {
+                let u = hold[sub];
+                let (a, b) = range(u);
+                let pass = next;
+                let mut c = rt.begin();
+                let submitted = (|| {
+                    if pass == a {
+                        for fb in &eye.fbs {
+                            rt.clear(&mut c, fb.film.radiance.raw())?;
+                        }
+                    }
+                    let count = record_pass(map, cam, pass, eye, &mut c)?;
+                    let film = if pass + 1 == b { Some(record_film_read(map.t, eye, u == 0, &mut c)?) } else { None };
+                    rt.submit(c)?;
+                    Ok::<_, crate::Error>(Flight { pass, count, film })
+                })();
+                flight.push_back(submitted.map_err(|e| e.context(format!("pass {pass} failed")))?);
+                if pass + 1 == b {
+                    sub += 1;
+                    if let Some(&u) = hold.get(sub) {
+                        next = range(u).0;
+                    }
+                } else {
+                    next += 1;
+                }
+                if flight.len() < IN_FLIGHT {
+                    continue;
+                }
+            }
+        }
+        // A finished unit's film, read back in its last pass's submission, is taken once the
+        // passes after it are submitted (the device works on while the host copies it).
+        if let Some((u, film, hits, stats)) = reading.take() {
+            let (film, hits) = wait_film(rt, film, hits).map_err(|e| e.context("reading back the image failed"))?;
+            hand.deliver(share::Unit { index: u, film, hits, stats });
+        }
+        let Some(f) = flight.pop_front() else {
+            // Nothing in flight: every unit in hand is delivered, or the render stops and the
+            // one begun goes as far as it got.
+            if counts.passes > 0 {
+                let u = hold.pop_front().expect("a unit begun");
+                let (film, hits) = read_film_now(map.t, eye, u == 0).map_err(|e| e.context("reading back the image failed"))?;
+                hand.deliver(share::Unit { index: u, film, hits, stats: counts });
+            }
+            return Ok(());
+        };
+        let stored = rt.wait(f.count).map_err(|e| e.context(format!("pass {} failed", f.pass)))?[0];
+        if stored > map.capacity {
+            // The pass lost photons (those after it may have too): grow the records and render
+            // the units in hand again from their first passes.
+            flight.clear();
+            rt.finish().and_then(|_| map.grow(stored)).map_err(|e| e.context(format!("growing the photon records after pass {} failed", f.pass)))?;
+            sub = 0;
+            next = range(hold[0]).0;
+            counts = UnitStats::default();
             continue;
         }
-        stats.passes += 1;
-        stats.emitted += map.o.photons as u64;
-        stats.stored += stored as u64;
-        stats.last_radius = pass_radius(map.r0, map.o.alpha, k);
-        progress.advance(1);
-        let secs = start.elapsed().as_secs_f64();
-        progress.status(&format!("{:.1} M photons/s", stats.emitted as f64 / secs / 1e6));
-        done |= k + 1 == map.o.passes || map.o.time_limit.is_some_and(|l| secs >= l) || progress.cancelled();
-        if !done && flight.is_empty() && secs - saved_at >= map.o.checkpoint_seconds {
-            match read_film(t, cam, &batches, &fbs) {
-                Ok((out, films)) => saved = Some(Checkpoint { films, out, stats: stats.clone() }),
-                Err(e) => return fail(saved, format!("reading back the image after pass {k} failed"), e),
-            }
-            saved_at = secs;
-        }
-        if done && flight.is_empty() {
-            break;
+        counts.passes += 1;
+        counts.emitted += map.o.photons as u64;
+        counts.stored += stored as u64;
+        counts.last_pass = f.pass;
+        hand.advance(1);
+        if let Some((film, hits)) = f.film {
+            let u = hold.pop_front().expect("a unit in hand");
+            sub -= 1;
+            reading = Some((u, film, hits, std::mem::take(&mut counts)));
         }
     }
-    match read_film(t, cam, &batches, &fbs) {
-        Ok((out, _)) => {
-            stats.seconds = start.elapsed().as_secs_f64();
-            Ok((out, stats))
-        }
-        Err(e) => fail(saved, "reading back the image failed".into(), e),
-    }
 }
 
-/// A checkpoint of a photon render: the film's sums per batch (to restore), its image and the
-/// statistics of the passes in it.
-struct Checkpoint {
-    films: Vec<Vec<[f32; 4]>>,
-    out: RenderOutput,
-    stats: PhotonStats,
-}
-
-/// Writes a checkpoint's film back (or leaves it: pass 0 overwrites the film).
-fn restore(t: &Tracer, fbs: &[FrameBuffers], saved: Option<&Checkpoint>) -> Result<()> {
-    if let Some(cp) = saved {
-        for (fb, film) in fbs.iter().zip(&cp.films) {
-            t.rt.write(&fb.film.radiance, film)?;
+/// Records the read-backs of every batch's film (and primary hits, with `hits`).
+fn record_film_read(t: &Tracer, eye: &EyeBuffers, hits: bool, c: &mut crate::runtime::Commands) -> Result<(Vec<Pending>, Vec<Pending>)> {
+    let mut films = Vec::new();
+    let mut hit = Vec::new();
+    for (&(_, count), fb) in eye.batches.iter().zip(&eye.fbs) {
+        films.push(t.rt.read_back_of(c, &fb.film.radiance, count)?);
+        if hits {
+            hit.push(t.rt.read_back_of(c, &fb.film.primary_hits, count)?);
         }
     }
-    Ok(())
+    Ok((films, hit))
 }
 
-/// Submits pass `pass` whole: photons traced and indexed, every batch's eye samples gathered
-/// into its film, and the photons stored read back (to check against the records' capacity).
-fn submit_pass(map: &mut PhotonMap, cam: &Camera, pass: u32, batches: &[(usize, usize)], fbs: &[FrameBuffers], gps: &[GatherPoints]) -> Result<Pending> {
-    let rt = map.t.rt;
-    let mut c = rt.begin();
-    let pending = record_pass(map, cam, pass, batches, fbs, gps, &mut c)?;
-    rt.submit(c)?;
-    Ok(pending)
+/// The film (and hits) recorded by `record_film_read`, per pixel in ray order.
+fn wait_film(rt: &dyn Runtime, films: Vec<Pending>, hits: Vec<Pending>) -> Result<(Vec<[f32; 4]>, Option<Vec<Hit>>)> {
+    let mut film = Vec::new();
+    for p in films {
+        film.extend(cast::<[f32; 4]>(rt.wait(p)?));
+    }
+    let h = if hits.is_empty() {
+        None
+    } else {
+        let mut v = Vec::new();
+        for p in hits {
+            v.extend(cast::<Hit>(rt.wait(p)?));
+        }
+        Some(v)
+    };
+    Ok((film, h))
 }
 
-/// Records pass `pass` whole into `c` (`submit_pass`).
-fn record_pass(
-    map: &mut PhotonMap,
-    cam: &Camera,
-    pass: u32,
-    batches: &[(usize, usize)],
-    fbs: &[FrameBuffers],
-    gps: &[GatherPoints],
-    c: &mut crate::runtime::Commands,
-) -> Result<Pending> {
+/// The film (and hits) read back now.
+fn read_film_now(t: &Tracer, eye: &EyeBuffers, hits: bool) -> Result<(Vec<[f32; 4]>, Option<Vec<Hit>>)> {
+    let mut c = t.rt.begin();
+    let (films, hit) = record_film_read(t, eye, hits, &mut c)?;
+    t.rt.submit(c)?;
+    wait_film(t.rt, films, hit)
+}
+
+/// Records pass `pass` whole into `c`: photons traced and indexed, every batch's eye samples
+/// gathered into its film, and the photons stored read back (to check against the records'
+/// capacity).
+fn record_pass(map: &mut PhotonMap, cam: &Camera, pass: u32, eye: &EyeBuffers, c: &mut crate::runtime::Commands) -> Result<Pending> {
     let (t, rt) = (map.t, map.t.rt);
     map.prepare_index(pass)?;
     map.record_trace(c, pass)?;
     map.record_index(c, pass)?;
-    for ((&(first, count), fb), gp) in batches.iter().zip(fbs).zip(gps) {
+    for ((&(first, count), fb), gp) in eye.batches.iter().zip(&eye.fbs).zip(&eye.gps) {
         let p = eye_params(t, cam, &map.o, first, count, pass);
         record_eye(c, map, &p, pass, fb, gp)?;
         rt.dispatch(c, &Film { params: p, paths: &fb.paths, radiance: &fb.film.radiance })?;
     }
     rt.read_back_of(c, &map.counter, 1)
-}
-
-/// The image so far, and the film's sums per batch (`path::read_films`).
-fn read_film(t: &Tracer, cam: &Camera, batches: &[(usize, usize)], fbs: &[FrameBuffers]) -> Result<(RenderOutput, Vec<Vec<[f32; 4]>>)> {
-    let films: Vec<&path::FilmBuffers> = fbs.iter().map(|f| &f.film).collect();
-    path::read_films(t, cam, batches, &films)
 }

@@ -114,6 +114,47 @@ impl std::str::FromStr for DeviceArg {
     }
 }
 
+/// `--devices`: `all` (every GPU adapter that can run the kernels) or a comma-separated list
+/// of `gpu`, `gpu:N`, `N` (adapter N) and `cpu` (the native runtime).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum DevicesArg {
+    All,
+    List(Vec<DeviceArg>),
+}
+
+impl std::str::FromStr for DevicesArg {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        if s == "all" {
+            return Ok(DevicesArg::All);
+        }
+        let list = s
+            .split(',')
+            .map(|d| match d.trim().parse::<usize>() {
+                Ok(n) => Ok(DeviceArg::Gpu(n)),
+                Err(_) => d.trim().parse::<DeviceArg>().map_err(|_| format!("unknown device '{d}' in --devices: use all, or a list of gpu, gpu:N, N and cpu")),
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(DevicesArg::List(list))
+    }
+}
+
+/// Opens the runtimes of `--devices`, in the order given.
+fn open_devices(d: &DevicesArg) -> Result<Vec<Box<dyn Runtime>>> {
+    Ok(match d {
+        DevicesArg::All => Gpu::open_all()?.into_iter().map(|g| Box::new(g) as Box<dyn Runtime>).collect(),
+        DevicesArg::List(l) => l
+            .iter()
+            .map(|d| {
+                Ok(match d {
+                    DeviceArg::Gpu(i) => Box::new(Gpu::open(*i)?) as Box<dyn Runtime>,
+                    DeviceArg::Cpu => Box::new(kdray::runtime::Cpu::new()),
+                })
+            })
+            .collect::<Result<_>>()?,
+    })
+}
+
 /// kd-tree build options (SAH constants and limits).
 #[derive(clap::Args, Clone, Debug)]
 pub struct BuildArgs {
@@ -179,6 +220,24 @@ pub enum Command {
         /// best GPU, or the CPU with a warning if there is no GPU.
         #[arg(long)]
         device: Option<DeviceArg>,
+        /// Render on several devices at once: `all` (every GPU adapter) or a list such as
+        /// `0,1` or `gpu:0,cpu` (an adapter listed twice is opened twice). Photon passes and
+        /// path samples are handed out in units (a faster device takes more) and summed in
+        /// unit order: the image is the same, bit for bit, as on one device of the kind. A
+        /// device that fails hands its units to the others.
+        #[arg(long, conflicts_with_all = ["device", "compare"])]
+        devices: Option<DevicesArg>,
+        /// One photon render over the ranks of an MPI job (`mpirun -n N kdray render --mpi …`;
+        /// built with `--features mpi`): rank r renders unit r of the units of passes, then
+        /// every N-th, on its devices; the ranks' sums are added up to rank 0, which writes
+        /// the image (the same, bit for bit, as one process's).
+        #[arg(long)]
+        mpi: bool,
+        /// The unit of work: passes (photon; default 4) or samples per pixel (path; default
+        /// 16) a device renders into a film of its own before it is read back and added to
+        /// the image. Part of the render: another unit sums in another order (the last bits).
+        #[arg(long)]
+        unit: Option<u32>,
         /// Image width and height in pixels.
         #[arg(long, default_value_t = 512)]
         size: u32,
@@ -345,7 +404,8 @@ pub enum Command {
     },
     /// Benchmarks: writes CSV and Markdown tables and PNG plots into --out.
     Bench {
-        /// horn, bounces, scaling, breakdown, build, visits, traversals, or all.
+        /// horn, bounces, scaling, breakdown, build, visits, order, traversals, photons,
+        /// devices (with --devices), or all.
         suite: String,
         /// Scenes (repeatable) instead of the suite's own: built-in names, .obj or .toml files.
         #[arg(long)]
@@ -353,6 +413,10 @@ pub enum Command {
         /// gpu, gpu:N or cpu.
         #[arg(long, default_value = "gpu")]
         device: DeviceArg,
+        /// `bench devices`: the devices to share the work over (as `render --devices`); the
+        /// first alone is the baseline.
+        #[arg(long)]
+        devices: Option<DevicesArg>,
         /// Image width and height of the ray batches.
         #[arg(long, default_value_t = 1024)]
         size: u32,
@@ -461,7 +525,7 @@ pub fn run(cli: Cli) -> Result<()> {
             }
             Ok(())
         }
-        Command::Bench { suite, scene: scenes, device, size, reps, out, dump_rays, peer, max_chairs, method, build } => {
+        Command::Bench { suite, scene: scenes, device, devices, size, reps, out, dump_rays, peer, max_chairs, method, build } => {
             if size == 0 || size > 4096 || reps == 0 {
                 bail!("--size must be 1..=4096 and --reps at least 1");
             }
@@ -474,12 +538,19 @@ pub fn run(cli: Cli) -> Result<()> {
             if suite != "all" && !crate::bench::SUITES.contains(&suite.as_str()) {
                 bail!("unknown bench suite '{suite}' (known: {}, all)", crate::bench::SUITES.join(", "));
             }
+            let several = match &devices {
+                Some(d) => open_devices(d)?,
+                None => Vec::new(),
+            };
             let gpu = match device {
+                // With --devices the other suites run natively (--devices is for `devices`).
+                _ if devices.is_some() => None,
                 DeviceArg::Gpu(i) => Some(Gpu::open(i)?),
                 DeviceArg::Cpu => None,
             };
             println!("device: {}", crate::bench::device_line(gpu.as_ref()));
             let opts = crate::bench::Options {
+                devices: several.iter().map(|b| b.as_ref()).collect(),
                 gpu: gpu.as_ref(),
                 scenes: (!scenes.is_empty()).then_some(scenes),
                 size,
@@ -504,6 +575,9 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Render {
             scene,
             device,
+            devices,
+            unit,
+            mpi,
             size,
             exposure,
             seed,
@@ -554,6 +628,9 @@ pub fn run(cli: Cli) -> Result<()> {
             if passes == 0 {
                 bail!("--passes must be at least 1");
             }
+            if unit == Some(0) {
+                bail!("--unit must be at least 1");
+            }
             if let Some(l) = time_limit {
                 if !(l.is_finite() && l > 0.0) {
                     bail!("--time-limit must be a positive number of seconds");
@@ -569,18 +646,26 @@ pub fn run(cli: Cli) -> Result<()> {
             if !(exposure.is_finite() && exposure > 0.0) {
                 bail!("--exposure must be a positive number");
             }
+            let job = open_job(mpi)?;
+            if job.is_some() && integrator != IntegratorArg::Photon {
+                bail!("--mpi renders photon mapping (--integrator photon)");
+            }
+            // Rank 0 of an MPI job speaks for it; the others say only what goes wrong.
+            let loud = job.as_ref().is_none_or(|j| j.rank() == 0);
             let scene = scene::load(&scene)?;
             for w in &scene.warnings {
                 eprintln!("warning: {w}");
             }
-            println!(
-                "scene {}: {} triangles ({} degenerate dropped), {} materials, {} lights",
-                scene.name,
-                scene.triangles.len(),
-                scene.dropped_degenerate,
-                scene.materials.len(),
-                scene.lights().len()
-            );
+            if loud {
+                println!(
+                    "scene {}: {} triangles ({} degenerate dropped), {} materials, {} lights",
+                    scene.name,
+                    scene.triangles.len(),
+                    scene.dropped_degenerate,
+                    scene.materials.len(),
+                    scene.lights().len()
+                );
+            }
             let needs_tree = accel.needs_tree() || (integrator == IntegratorArg::Photon && photon_index == IndexArg::Kd);
             let tree = if needs_tree { Some(build_tree(&scene, &opts)?) } else { None };
             let tree = tree.as_ref();
@@ -590,7 +675,9 @@ pub fn run(cli: Cli) -> Result<()> {
             if ray_order == Some(RayOrderArg::Tiles) {
                 cam.order = kdray_shared::ORDER_TILES;
             }
+            let opened = (|| -> Result<(Option<Gpu>, Vec<Box<dyn Runtime>>)> {
             let gpu = match device {
+                _ if devices.is_some() => None,
                 Some(DeviceArg::Cpu) => None,
                 Some(DeviceArg::Gpu(i)) => Some(Gpu::open(i)?),
                 None => match Gpu::new() {
@@ -608,21 +695,50 @@ pub fn run(cli: Cli) -> Result<()> {
                     }
                 },
             };
-            let rt: &dyn Runtime = match &gpu {
-                Some(g) => g,
-                None => &NATIVE,
+            let several = match &devices {
+                Some(d) => open_devices(d)?,
+                None => Vec::new(),
             };
-            // The image, and why it holds fewer passes than asked (a pass failed after a
-            // checkpoint), if it does.
-            let render = |rt: &dyn Runtime| -> Result<(kdray::RenderOutput, Option<String>)> {
-                let mut t = Tracer::new(rt, &scene, tree)?;
-                if let Some(b) = &bvh {
-                    t = t.with_bvh(b)?;
+            Ok((gpu, several))
+            })();
+            // A rank of an MPI job that cannot open its devices still takes part (with its error).
+            let (gpu, several) = match (opened, &job) {
+                (Ok(o), _) => o,
+                (Err(e), Some(j)) => {
+                    let o = photon_options_for_mpi(passes, unit, ray_order != Some(RayOrderArg::Scanline));
+                    j.reduce_photons(Err(kdray::Error::InvalidInput(format!("{e:#}"))), &pm::ray_camera(&o, &cam), passes)?;
+                    return Err(e);
                 }
-                println!("device: {}, traversal {}", t.device_name(), accel.name());
-                if let Some(s) = t.split_summary() {
-                    println!("scene split across bindings: {s}");
-                }
+                (Err(e), None) => return Err(e),
+            };
+            let rts: Vec<&dyn Runtime> = match &gpu {
+                _ if !several.is_empty() => several.iter().map(|b| b.as_ref()).collect(),
+                Some(g) => vec![g],
+                None => vec![&NATIVE],
+            };
+            // The image, and why it holds fewer passes than asked (every device failed), if
+            // it does.
+            let reduced = std::cell::Cell::new(false);
+            let render = |rts: &[&dyn Runtime]| -> Result<Option<(kdray::RenderOutput, Option<String>)>> {
+                let tracers: Vec<Tracer> = rts
+                    .iter()
+                    .map(|&rt| {
+                        let t = Tracer::new(rt, &scene, tree)?;
+                        let t = match &bvh {
+                            Some(b) => t.with_bvh(b)?,
+                            None => t,
+                        };
+                        if loud {
+                            println!("device: {}, traversal {}", t.device_name(), accel.name());
+                            if let Some(s) = t.split_summary() {
+                                println!("scene split across bindings: {s}");
+                            }
+                        }
+                        Ok(t)
+                    })
+                    .collect::<Result<_>>()?;
+                let ts: Vec<&Tracer> = tracers.iter().collect();
+                let rt = rts[0];
                 let start = Instant::now();
                 let (r, interrupted) = match integrator {
                     IntegratorArg::Direct | IntegratorArg::Path => {
@@ -634,10 +750,14 @@ pub fn run(cli: Cli) -> Result<()> {
                         o.fused = !split_passes;
                         o.sampler = sampler.kind();
                         o.raster = primary == PrimaryArg::Raster;
+                        o.unit_samples = unit.unwrap_or(path::UNIT_SAMPLES);
                         let pb = progress("render");
-                        let (r, s) = path::render_checkpointed(&t, accel, &cam, &o, &Bar(pb.clone()), path::CHECKPOINT_SECONDS)?;
+                        let (r, s) = path::render_on(&ts, accel, &cam, &o, &Bar(pb.clone()))?;
                         pb.finish_and_clear();
-                        (r, s.interrupted.map(|e| format!("{e}; the image holds the {} samples per pixel before it", s.samples)))
+                        for f in &s.failed {
+                            eprintln!("warning: device {f}; its samples went to the other devices");
+                        }
+                        (r, s.interrupted)
                     }
                     IntegratorArg::Photon => {
                         let o = PhotonOptions {
@@ -674,12 +794,31 @@ pub fn run(cli: Cli) -> Result<()> {
                             seed,
                             sampler: sampler.kind(),
                             photon_sampler: photon_sampler.kind(),
+                            unit_passes: unit.unwrap_or(pm::UNIT_PASSES),
                             ..Default::default()
                         };
-                        let mut map = PhotonMap::new(&t, accel, tree, &scene, o)?;
-                        let pb = progress_passes();
-                        let (r, s) = pm::render(&mut map, &cam, &Bar(pb.clone()))?;
+                        let mut maps: Vec<PhotonMap> = ts.iter().map(|&t| PhotonMap::new(t, accel, tree, &scene, o.clone())).collect::<Result<_, kdray::Error>>()?;
+                        let pb = if loud { progress_passes() } else { ProgressBar::hidden() };
+                        let (r, s) = match &job {
+                            Some(j) => {
+                                reduced.set(true);
+                                let part = pm::render_part(&mut maps, &cam, &Bar(pb.clone()), j.part());
+                                pb.finish_and_clear();
+                                if let Err(e) = &part {
+                                    eprintln!("error: rank {}: {e}", j.rank());
+                                }
+                                match j.reduce_photons(part, &pm::ray_camera(&o, &cam), o.passes)? {
+                                    Some(whole) => (whole.image(), whole.stats),
+                                    None => return Ok(None),
+                                }
+                            }
+                            None => pm::render_on(&mut maps, &cam, &Bar(pb.clone()))?,
+                        };
                         pb.finish_and_clear();
+                        for f in &s.failed {
+                            eprintln!("warning: device {f}; its passes went to the other devices");
+                        }
+                        let map = &maps[0];
                         println!(
                             "photon mapping: {} passes × {} photons, {:.1} M photons stored, radius {:.4} → {:.4}, {:.1} M photons/s",
                             s.passes,
@@ -689,7 +828,7 @@ pub fn run(cli: Cli) -> Result<()> {
                             s.last_radius,
                             s.emitted as f64 / s.seconds / 1e6
                         );
-                        (r, s.interrupted.map(|e| format!("{e}; the image holds the {} passes before it", s.passes)))
+                        (r, s.interrupted)
                     }
                 };
                 let secs = start.elapsed().as_secs_f64();
@@ -698,9 +837,19 @@ pub fn run(cli: Cli) -> Result<()> {
                     secs,
                     (size * size) as f64 / secs / 1e6
                 );
-                Ok((r, interrupted))
+                Ok(Some((r, interrupted)))
             };
-            let (img, interrupted) = render(rt)?;
+            let (img, interrupted) = match (render(&rts), &job) {
+                (Ok(Some(r)), _) => r,
+                // Another rank of the MPI job writes the image.
+                (Ok(None), _) => return Ok(()),
+                (Err(e), Some(j)) if !reduced.get() => {
+                    let o = photon_options_for_mpi(passes, unit, ray_order != Some(RayOrderArg::Scanline));
+                    j.reduce_photons(Err(kdray::Error::InvalidInput(format!("{e:#}"))), &pm::ray_camera(&o, &cam), passes)?;
+                    return Err(e);
+                }
+                (Err(e), _) => return Err(e),
+            };
             write_png(&img, exposure, &out)?;
             println!("wrote {}", out.display());
             if integrator != IntegratorArg::Direct {
@@ -715,7 +864,7 @@ pub fn run(cli: Cli) -> Result<()> {
                 if gpu.is_none() {
                     bail!("--compare needs a GPU adapter");
                 }
-                let (other, _) = render(&NATIVE)?;
+                let (other, _) = render(&[&NATIVE])?.expect("not an MPI job");
                 let stem = out.with_extension("");
                 let cpu_path = PathBuf::from(format!("{}-cpu.png", stem.display()));
                 write_png(&other, exposure, &cpu_path)?;
@@ -728,6 +877,43 @@ pub fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
     }
+}
+
+/// The MPI job of `render --mpi` (feature `mpi`).
+#[cfg(feature = "mpi")]
+type Job = kdray::mpi::Job;
+
+/// Without the feature there is no job (`--mpi` is refused).
+#[cfg(not(feature = "mpi"))]
+enum Job {}
+
+#[cfg(not(feature = "mpi"))]
+impl Job {
+    fn rank(&self) -> u32 {
+        match *self {}
+    }
+    fn part(&self) -> kdray::integrator::share::Part {
+        match *self {}
+    }
+    fn reduce_photons(&self, _: kdray::Result<pm::PhotonPart>, _: &kdray_shared::Camera, _: u32) -> kdray::Result<Option<pm::PhotonPart>> {
+        match *self {}
+    }
+}
+
+/// The MPI job, with `--mpi`.
+fn open_job(mpi: bool) -> Result<Option<Job>> {
+    if !mpi {
+        return Ok(None);
+    }
+    #[cfg(feature = "mpi")]
+    return Ok(Some(kdray::mpi::Job::init()?));
+    #[cfg(not(feature = "mpi"))]
+    bail!("--mpi: this kdray was built without MPI (cargo build --release --features mpi, with Open MPI and libclang installed: scripts/setup.sh --mpi)")
+}
+
+/// The options that decide how an MPI rank's empty part looks (the camera's ray order).
+fn photon_options_for_mpi(passes: u32, unit: Option<u32>, tiles: bool) -> PhotonOptions {
+    PhotonOptions { passes, unit_passes: unit.unwrap_or(pm::UNIT_PASSES), tiles, ..Default::default() }
 }
 
 /// The spread of `--emission`: 0 for independent photons.

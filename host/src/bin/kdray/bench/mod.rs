@@ -7,6 +7,7 @@
 //! answer (hit triangle id, or occluded or not) differs from the brute-force oracle;
 //! `vs reference` = fraction of all rays whose answer differs from the native full-stack
 //! traversal (itself bit-identical to the oracle in the tests).
+pub mod devices;
 pub mod dump;
 pub mod photons;
 pub mod plot;

@@ -161,7 +161,7 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
         let (eye_ms, bvh_eye_ms, gather_grid, per_point, at50, gather_tiles, gather_wide, gather_kd, fg_ms) = if t.batch_size(accel, n) >= n {
             let fb = FrameBuffers::new(&t, accel, n)?;
             let gp = pm::GatherPoints::new(&t, 0)?;
-            let po = PathOptions { seed: 1, bounces: 16, diffuse_bounces: 0, spp: 1, jitter: true, fused: true, sampler: SamplerKind::Sobol, raster: false };
+            let po = PathOptions { seed: 1, bounces: 16, diffuse_bounces: 0, spp: 1, jitter: true, fused: true, sampler: SamplerKind::Sobol, raster: false, unit_samples: 1 };
             let mut p = path::params(&t, &cam, &po, 0, n, 0);
             p.flags |= kdray_shared::RENDER_GATHER;
             let eye = time_recorded(rt, copies, &|c| rt.dispatch_all(c, path::eye_passes(&t, accel, &p, &fb, true)?).map(drop))?;

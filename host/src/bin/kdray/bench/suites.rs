@@ -13,11 +13,13 @@ use kdray_shared::kdtree::Algorithm;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
-pub const SUITES: &[&str] = &["horn", "bounces", "scaling", "breakdown", "build", "visits", "order", "traversals", "photons"];
+pub const SUITES: &[&str] = &["horn", "bounces", "scaling", "breakdown", "build", "visits", "order", "traversals", "photons", "devices"];
 
 /// What every suite needs.
 pub struct Options<'g> {
     pub gpu: Option<&'g Gpu>,
+    /// `--devices`: the runtimes of `bench devices` (empty without it).
+    pub devices: Vec<&'g dyn kdray::runtime::Runtime>,
     /// Scenes instead of the suite's own list (`scaling` always measures `chairs:K`).
     pub scenes: Option<Vec<String>>,
     pub size: u32,
@@ -73,7 +75,8 @@ fn horn_scenes(o: &Options) -> Vec<String> {
 /// Runs `suite` (or every suite for `all`); returns the files written.
 pub fn run_suite(suite: &str, o: &Options) -> Result<Vec<PathBuf>> {
     let mut scenes = Scenes::default();
-    let list: Vec<&str> = if suite == "all" { SUITES.to_vec() } else { vec![suite] };
+    // `all` runs `devices` only with --devices.
+    let list: Vec<&str> = if suite == "all" { SUITES.iter().copied().filter(|&s| s != "devices" || !o.devices.is_empty()).collect() } else { vec![suite] };
     let mut files = Vec::new();
     for s in list {
         let start = std::time::Instant::now();
@@ -87,6 +90,7 @@ pub fn run_suite(suite: &str, o: &Options) -> Result<Vec<PathBuf>> {
             "order" => order(o, &mut scenes)?,
             "traversals" => traversals(o, &mut scenes)?,
             "photons" => super::photons::photons(o, &mut scenes)?,
+            "devices" => super::devices::devices(o, &mut scenes)?,
             _ => bail!("unknown bench suite '{s}' (known: {}, all)", SUITES.join(", ")),
         };
         println!("suite {s}: {:.1} s", start.elapsed().as_secs_f64());
