@@ -225,6 +225,29 @@ pub const MAX_UNITS: u32 = 1 << 22;
 const FIXED_ONE: f64 = 18_446_744_073_709_551_616.0; // 2^64
 const FIXED_MAX: f32 = 1_099_511_627_776.0; // 2^40
 
+/// `v` (at most 2^40 in magnitude) in units of 2^-64, rounded to nearest (ties away from
+/// zero): its 24-bit significand shifted, in integer arithmetic.
+#[inline(always)]
+fn fixed(v: f32) -> i128 {
+    let b = v.to_bits();
+    let e = ((b >> 23) & 0xff) as i32;
+    if e == 0 {
+        // Zero or subnormal: below 2^-126, far below 2^-64.
+        return 0;
+    }
+    // v = m · 2^(e − 150), so v · 2^64 = m · 2^(e − 86).
+    let m = ((b & 0x7f_ffff) | 0x80_0000) as i128;
+    let shift = e - 86;
+    let magnitude = if shift >= 0 {
+        m << shift
+    } else if shift >= -24 {
+        (m + (1 << (-shift - 1))) >> -shift
+    } else {
+        0
+    };
+    if b >> 31 == 1 { -magnitude } else { magnitude }
+}
+
 impl FilmSum {
     /// A zero sum of `pixels` pixels.
     pub fn new(pixels: usize) -> Self {
@@ -233,18 +256,29 @@ impl FilmSum {
 
     /// Adds a film (per pixel, four components).
     pub fn add(&mut self, film: &[[f32; 4]]) {
-        for (s, f) in self.sum.iter_mut().zip(film) {
-            for c in 0..4 {
-                let v = f[c];
-                let v = if v.is_nan() { 0.0 } else { v.clamp(-FIXED_MAX, FIXED_MAX) };
-                if v != f[c] {
-                    self.clamped += 1;
+        use rayon::prelude::*;
+        // Over all cores: a film arrives per unit from every device, and one thread would
+        // bound how many devices the host keeps up with (512²: 4 ms a film on one core).
+        let clamped: u64 = self
+            .sum
+            .par_chunks_mut(1 << 14)
+            .zip(film.par_chunks(1 << 14))
+            .map(|(sums, films)| {
+                let mut clamped = 0;
+                for (s, f) in sums.iter_mut().zip(films) {
+                    for c in 0..4 {
+                        let v = f[c];
+                        let v = if v.is_nan() { 0.0 } else { v.clamp(-FIXED_MAX, FIXED_MAX) };
+                        if v != f[c] {
+                            clamped += 1;
+                        }
+                        s[c] += fixed(v);
+                    }
                 }
-                // v · 2^64 is exact in f64 (a power-of-two scale of 24 bits); rounding it to an
-                // integer loses only what lies below 2^-64.
-                s[c] += ((v as f64) * FIXED_ONE).round() as i128;
-            }
-        }
+                clamped
+            })
+            .sum();
+        self.clamped += clamped;
     }
 
     /// Adds another sum (of the same pixels).
@@ -426,6 +460,24 @@ mod tests {
             f += film(u)[0][0] as f64;
         }
         assert_ne!(f as f32, one.sum.film()[0][0], "the films chosen do not tell an exact sum from a floating-point one");
+    }
+
+    /// The integer conversion is the exact one (v · 2^64 in f64, rounded half away from zero)
+    /// for values of every exponent, ties included.
+    #[test]
+    fn fixed_point_conversion_is_exact() {
+        let mut rng = kdray_shared::rng::Rng::new(5, 0);
+        let mut values: Vec<f32> = vec![0.0, -0.0, 1.0, -1.0, 2f32.powi(-64), 2f32.powi(-65), 3.0 * 2f32.powi(-66), -3.0 * 2f32.powi(-66), 2f32.powi(40), -(2f32.powi(40)), f32::MIN_POSITIVE, 2f32.powi(-88)];
+        for _ in 0..200_000 {
+            let bits = rng.next_u32();
+            let v = f32::from_bits(bits);
+            if v.is_finite() && v.abs() <= FIXED_MAX {
+                values.push(v);
+            }
+        }
+        for v in values {
+            assert_eq!(fixed(v), ((v as f64) * FIXED_ONE).round() as i128, "{v:e}");
+        }
     }
 
     /// Values beyond ±2^40 and NaN are clamped and counted; a value below 2^-64 is lost.
