@@ -1120,3 +1120,15 @@ fn edge_marks_follow_the_geometry_with_every_structure_and_runtime() {
         }
     }
 }
+
+/// The default unit of work: at least four passes, at most 16 units a render; a unit given is
+/// kept.
+#[test]
+fn the_default_unit_cuts_a_render_into_at_most_sixteen_units() {
+    let unit = |passes, unit_passes| PhotonOptions { passes, unit_passes, ..Default::default() }.unit();
+    assert_eq!((unit(1, 0), unit(16, 0), unit(64, 0), unit(65, 0), unit(256, 0), unit(1000, 0)), (4, 4, 4, 5, 16, 63));
+    assert_eq!(unit(256, 3), 3);
+    for passes in 1u32..2000 {
+        assert!(passes.div_ceil(unit(passes, 0)) <= 16);
+    }
+}

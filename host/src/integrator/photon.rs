@@ -99,7 +99,8 @@ pub struct PhotonOptions {
     /// Passes per unit of work (`render_on`): a device renders a unit's passes into a film of
     /// its own, which is then read back and added to the image. Fixed by the render, not by
     /// the devices, so the image is the same on any number of them; a failure loses at most
-    /// the units in hand (another device renders them again). `UNIT_PASSES` by default.
+    /// the units in hand (another device renders them again). 0 (the default): `unit()`'s
+    /// choice, at least `UNIT_PASSES` and at most 16 units a render.
     pub unit_passes: u32,
     /// The first pass's gather radius (scene units); default: about `PHOTONS_PER_GATHER` photons
     /// per gather.
@@ -168,7 +169,7 @@ impl Default for PhotonOptions {
             photons: 1 << 20,
             passes: 16,
             time_limit: None,
-            unit_passes: UNIT_PASSES,
+            unit_passes: 0,
             radius: None,
             caustic_radius: 0.5,
             alpha: 2.0 / 3.0,
@@ -920,8 +921,26 @@ fn record_eye<'a>(c: &mut crate::runtime::Commands, map: &'a PhotonMap, p: &Rend
 /// overflow found one pass later still).
 const IN_FLIGHT: usize = 3;
 
-/// Passes per unit of work by default (`PhotonOptions::unit_passes`).
+/// The fewest passes of a unit of work chosen by default (`PhotonOptions::unit`).
 pub const UNIT_PASSES: u32 = 4;
+
+/// The most units of work a render is cut into by default (`PhotonOptions::unit`): each unit's
+/// film is read back and summed on the host (H200, Cornell box 512², 256 passes: 64 units of
+/// four took 1.11–1.18 s against 0.91 s in one unit, with the film waited for before the next
+/// pass was submitted).
+pub const DEFAULT_UNITS: u32 = 16;
+
+impl PhotonOptions {
+    /// The passes of a unit of work: `unit_passes`, or by default as many as cut the render
+    /// into at most `DEFAULT_UNITS` units, at least `UNIT_PASSES` — a function of the
+    /// options alone, never of the devices, so the image is the same on any number of them.
+    pub fn unit(&self) -> u32 {
+        match self.unit_passes {
+            0 => self.passes.div_ceil(DEFAULT_UNITS).max(UNIT_PASSES),
+            n => n,
+        }
+    }
+}
 
 /// Renders `cam`'s image by progressive photon mapping on `map`'s runtime; `progress` counts
 /// passes. `render_on` with one device.
@@ -932,7 +951,7 @@ pub fn render(map: &mut PhotonMap, cam: &Camera, progress: &dyn Progress) -> Res
 /// Renders `cam`'s image by progressive photon mapping on every map's runtime at once (one map
 /// per device, all made with the same options over the same scene); `progress` counts passes.
 ///
-/// The passes go in units of `PhotonOptions::unit_passes` (`share`): a device takes the next
+/// The passes go in units of `PhotonOptions::unit()` (`share`): a device takes the next
 /// unit when it is free, renders its passes into its film from zero and hands the film over;
 /// the films are summed exactly (`share::FilmSum`), so the image is the same, bit for bit, on one device or
 /// several of one kind. Each pass is one submission: its photons traced and indexed, its eye
@@ -1008,14 +1027,12 @@ pub fn render_part(maps: &mut [PhotonMap], cam: &Camera, progress: &dyn Progress
     let Some(first) = maps.first() else { bail!(InvalidInput: "a render needs at least one device") };
     let o = first.o.clone();
     for m in &maps[1..] {
-        let same = (m.o.passes, m.o.unit_passes, m.o.photons, m.o.seed, m.o.alpha, m.o.eye_samples) == (o.passes, o.unit_passes, o.photons, o.seed, o.alpha, o.eye_samples);
+        let same = (m.o.passes, m.o.unit(), m.o.photons, m.o.seed, m.o.alpha, m.o.eye_samples) == (o.passes, o.unit(), o.photons, o.seed, o.alpha, o.eye_samples);
         if !same || m.r0 != first.r0 || !m.t.holds_same(first.t) {
             bail!(InvalidInput: "the devices of a render need photon maps made with the same options over the same scene");
         }
     }
-    if o.unit_passes == 0 {
-        bail!(InvalidInput: "a unit of work needs at least one pass");
-    }
+    let per = o.unit();
     let r0 = first.r0;
     let cam = &ray_camera(&o, cam);
     let n = (cam.width * cam.height) as usize;
@@ -1029,9 +1046,9 @@ pub fn render_part(maps: &mut [PhotonMap], cam: &Camera, progress: &dyn Progress
     for r in ready {
         r?;
     }
-    let units = o.passes.div_ceil(o.unit_passes);
+    let units = o.passes.div_ceil(per);
     // The part's passes (all of them in one process).
-    let mine: u32 = (0..units).filter(|&u| part.holds(u)).map(|u| (o.passes - u * o.unit_passes).min(o.unit_passes)).sum();
+    let mine: u32 = (0..units).filter(|&u| part.holds(u)).map(|u| (o.passes - u * per).min(per)).sum();
     progress.start(mine as u64);
     let start = Instant::now();
     let mut stats = PhotonStats::default();
@@ -1131,7 +1148,7 @@ struct Flight {
 /// them, `IN_FLIGHT` passes ahead of the checks.
 fn photon_worker(map: &mut PhotonMap, cam: &Camera, eye: &EyeBuffers, hand: &mut share::Hand<'_, UnitStats>) -> Result<()> {
     let rt = map.t.rt;
-    let (per, passes) = (map.o.unit_passes, map.o.passes);
+    let (per, passes) = (map.o.unit(), map.o.passes);
     let range = |u: u32| (u * per, ((u + 1) * per).min(passes));
     // Units in hand, oldest first (the first is the one being checked), the next of them to
     // submit passes of, and its next pass.

@@ -233,8 +233,8 @@ pub enum Command {
         /// the image (the same, bit for bit, as one process's).
         #[arg(long)]
         mpi: bool,
-        /// The unit of work: passes (photon; default 4) or samples per pixel (path; default
-        /// 16) a device renders into a film of its own before it is read back and added to
+        /// The unit of work: passes (photon; default: at least 4, at most 16 units a render)
+        /// or samples per pixel (path; default 16) a device renders into a film of its own before it is read back and added to
         /// the image. Part of the render: another unit sums in another order (the last bits).
         #[arg(long)]
         unit: Option<u32>,
@@ -794,7 +794,7 @@ pub fn run(cli: Cli) -> Result<()> {
                             seed,
                             sampler: sampler.kind(),
                             photon_sampler: photon_sampler.kind(),
-                            unit_passes: unit.unwrap_or(pm::UNIT_PASSES),
+                            unit_passes: unit.unwrap_or(0),
                             ..Default::default()
                         };
                         let mut maps: Vec<PhotonMap> = ts.iter().map(|&t| PhotonMap::new(t, accel, tree, &scene, o.clone())).collect::<Result<_, kdray::Error>>()?;
@@ -913,7 +913,7 @@ fn open_job(mpi: bool) -> Result<Option<Job>> {
 
 /// The options that decide how an MPI rank's empty part looks (the camera's ray order).
 fn photon_options_for_mpi(passes: u32, unit: Option<u32>, tiles: bool) -> PhotonOptions {
-    PhotonOptions { passes, unit_passes: unit.unwrap_or(pm::UNIT_PASSES), tiles, ..Default::default() }
+    PhotonOptions { passes, unit_passes: unit.unwrap_or(0), tiles, ..Default::default() }
 }
 
 /// The spread of `--emission`: 0 for independent photons.

@@ -60,8 +60,8 @@ pub fn devices(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
             let rgb = |r: &RenderOutput| r.radiance.iter().map(|p| [p[0], p[1], p[2]]).collect::<Vec<_>>();
             format!("{:.2e} rel. RMSE", image_error(&rgb(a), &rgb(b)).rel_rmse)
         };
-        // Photon mapping: passes in units of four.
-        let po = PhotonOptions { photons: if native { 1 << 16 } else { 1 << 20 }, passes: if native { 16 } else { 128 }, ..Default::default() };
+        // Photon mapping: passes in units of four (the default's smallest).
+        let po = PhotonOptions { photons: if native { 1 << 16 } else { 1 << 20 }, passes: if native { 16 } else { 128 }, unit_passes: 4, ..Default::default() };
         let photon = |ts: &[&Tracer]| -> Result<(RenderOutput, pm::PhotonStats)> {
             let mut maps: Vec<PhotonMap> = ts.iter().map(|&t| PhotonMap::new(t, accel, Some(tree), scene, po.clone())).collect::<kdray::Result<_>>()?;
             Ok(pm::render_on(&mut maps, &cam, &())?)
@@ -101,7 +101,7 @@ pub fn devices(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
     }
     let summary = format!(
         "First device: {}. All: {}. Work is handed out in units (photon passes in fours, path samples in sixteens, rays in 2^18s) to whichever device is free; \
-         the units' films are summed in unit order, so on devices of one kind the error is 0.\n\n",
+         the units' films are summed exactly, so on devices of one kind the error is 0.\n\n",
         names[0],
         names.join(" + ")
     );
