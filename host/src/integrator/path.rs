@@ -11,7 +11,7 @@
 use super::{Progress, RenderOutput, SamplerKind};
 use crate::accel::Accel;
 use crate::kernels::{Accumulate, CameraRays, ContinuePaths, Film, PathStep, TracePaths};
-use crate::runtime::{cast, Buffer, Kernel};
+use crate::runtime::{cast, Buffer, Commands, Kernel, Pending, Runtime};
 use crate::tracer::{LeafLists, Tracer};
 use crate::error::{bail, Result};
 use kdray_shared::query::{AnyHit, Closest};
@@ -415,44 +415,43 @@ fn path_worker(t: &Tracer, accel: Accel, cam: &Camera, o: &PathOptions, b: &Path
 /// Dispatches recorded into one submission (bounds the size of a command buffer).
 const DISPATCHES_PER_SUBMIT: usize = 2048;
 
-/// The films of `batches`, per pixel in ray order, and (with `hits`) their primary hits.
-pub fn read_raw_films(t: &Tracer, batches: &[(usize, usize)], films: &[&FilmBuffers], hits: bool) -> Result<(Vec<[f32; 4]>, Option<Vec<Hit>>)> {
-    let rt = t.rt;
-    let mut c = rt.begin();
-    let pending: Vec<_> = batches
-        .iter()
-        .zip(films)
-        .map(|(&(_, count), f)| Ok((if hits { Some(rt.read_back_of(&mut c, &f.primary_hits, count)?) } else { None }, rt.read_back_of(&mut c, &f.radiance, count)?)))
-        .collect::<Result<_>>()?;
-    rt.submit(c)?;
-    let mut film = Vec::new();
+/// Records the read-backs of the films of `batches` (and, with `hits`, their primary hits),
+/// to be waited for by `wait_film_reads`.
+pub(crate) fn record_film_reads(t: &Tracer, batches: &[(usize, usize)], films: &[&FilmBuffers], hits: bool, c: &mut Commands) -> Result<(Vec<Pending>, Vec<Pending>)> {
+    let mut radiance = Vec::new();
     let mut hit = Vec::new();
-    for (h, r) in pending {
-        film.extend(cast::<[f32; 4]>(rt.wait(r)?));
-        if let Some(h) = h {
-            hit.extend(cast::<Hit>(rt.wait(h)?));
+    for (&(_, count), f) in batches.iter().zip(films) {
+        radiance.push(t.rt.read_back_of(c, &f.radiance, count)?);
+        if hits {
+            hit.push(t.rt.read_back_of(c, &f.primary_hits, count)?);
         }
     }
-    Ok((film, hits.then_some(hit)))
+    Ok((radiance, hit))
 }
 
-/// The image of the films of `batches` and the films' sums (each batch's pixels): their
-/// primary hits and radiance, read back.
-pub fn read_films(t: &Tracer, cam: &Camera, batches: &[(usize, usize)], films: &[&FilmBuffers]) -> Result<(RenderOutput, Vec<Vec<[f32; 4]>>)> {
-    let rt = t.rt;
-    let mut out = RenderOutput::new(cam.width, cam.height);
-    let mut c = rt.begin();
-    let pending: Vec<_> = batches
-        .iter()
-        .zip(films)
-        .map(|(&(_, count), f)| Ok((rt.read_back_of(&mut c, &f.primary_hits, count)?, rt.read_back_of(&mut c, &f.radiance, count)?)))
-        .collect::<Result<_>>()?;
-    rt.submit(c)?;
-    let mut sums = Vec::with_capacity(batches.len());
-    for ((first, _), (h, r)) in batches.iter().zip(pending) {
-        let film: Vec<[f32; 4]> = cast(rt.wait(r)?);
-        place(&mut out, cam, *first, cast(rt.wait(h)?), film.clone());
-        sums.push(film);
+/// The films (and hits) `record_film_reads` recorded, per pixel in ray order.
+pub(crate) fn wait_film_reads(rt: &dyn Runtime, films: Vec<Pending>, hits: Vec<Pending>) -> Result<(Vec<[f32; 4]>, Option<Vec<Hit>>)> {
+    let mut film = Vec::new();
+    for p in films {
+        film.extend(cast::<[f32; 4]>(rt.wait(p)?));
     }
-    Ok((out, sums))
+    let hit = if hits.is_empty() {
+        None
+    } else {
+        let mut v = Vec::new();
+        for p in hits {
+            v.extend(cast::<Hit>(rt.wait(p)?));
+        }
+        Some(v)
+    };
+    Ok((film, hit))
+}
+
+/// The films of `batches`, per pixel in ray order, and (with `hits`) their primary hits, read
+/// back now.
+pub fn read_raw_films(t: &Tracer, batches: &[(usize, usize)], films: &[&FilmBuffers], hits: bool) -> Result<(Vec<[f32; 4]>, Option<Vec<Hit>>)> {
+    let mut c = t.rt.begin();
+    let (radiance, hit) = record_film_reads(t, batches, films, hits, &mut c)?;
+    t.rt.submit(c)?;
+    wait_film_reads(t.rt, radiance, hit)
 }

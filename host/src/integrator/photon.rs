@@ -1111,6 +1111,11 @@ struct EyeBuffers {
 }
 
 impl EyeBuffers {
+    /// The batches' films.
+    fn films(&self) -> Vec<&path::FilmBuffers> {
+        self.fbs.iter().map(|f| &f.film).collect()
+    }
+
     fn new(map: &mut PhotonMap, cam: &Camera) -> Result<Self> {
         let t = map.t;
         let e = map.o.eye_samples as usize;
@@ -1179,7 +1184,7 @@ fn photon_worker(map: &mut PhotonMap, cam: &Camera, eye: &EyeBuffers, hand: &mut
                         }
                     }
                     let count = record_pass(map, cam, pass, eye, &mut c)?;
-                    let film = if pass + 1 == b { Some(record_film_read(map.t, eye, u == 0, &mut c)?) } else { None };
+                    let film = if pass + 1 == b { Some(path::record_film_reads(map.t, &eye.batches, &eye.films(), u == 0, &mut c)?) } else { None };
                     rt.submit(c)?;
                     Ok::<_, crate::Error>(Flight { pass, count, film })
                 })();
@@ -1200,7 +1205,7 @@ fn photon_worker(map: &mut PhotonMap, cam: &Camera, eye: &EyeBuffers, hand: &mut
         // A finished unit's film, read back in its last pass's submission, is taken once the
         // passes after it are submitted (the device works on while the host copies it).
         if let Some((u, film, hits, stats)) = reading.take() {
-            let (film, hits) = wait_film(rt, film, hits).map_err(|e| e.context("reading back the image failed"))?;
+            let (film, hits) = path::wait_film_reads(rt, film, hits).map_err(|e| e.context("reading back the image failed"))?;
             hand.deliver(share::Unit { index: u, film, hits, stats });
         }
         let Some(f) = flight.pop_front() else {
@@ -1208,7 +1213,7 @@ fn photon_worker(map: &mut PhotonMap, cam: &Camera, eye: &EyeBuffers, hand: &mut
             // one begun goes as far as it got.
             if counts.passes > 0 {
                 let u = hold.pop_front().expect("a unit begun");
-                let (film, hits) = read_film_now(map.t, eye, u == 0).map_err(|e| e.context("reading back the image failed"))?;
+                let (film, hits) = path::read_raw_films(map.t, &eye.batches, &eye.films(), u == 0).map_err(|e| e.context("reading back the image failed"))?;
                 hand.deliver(share::Unit { index: u, film, hits, stats: counts });
             }
             return Ok(());
@@ -1237,44 +1242,6 @@ fn photon_worker(map: &mut PhotonMap, cam: &Camera, eye: &EyeBuffers, hand: &mut
     }
 }
 
-/// Records the read-backs of every batch's film (and primary hits, with `hits`).
-fn record_film_read(t: &Tracer, eye: &EyeBuffers, hits: bool, c: &mut crate::runtime::Commands) -> Result<(Vec<Pending>, Vec<Pending>)> {
-    let mut films = Vec::new();
-    let mut hit = Vec::new();
-    for (&(_, count), fb) in eye.batches.iter().zip(&eye.fbs) {
-        films.push(t.rt.read_back_of(c, &fb.film.radiance, count)?);
-        if hits {
-            hit.push(t.rt.read_back_of(c, &fb.film.primary_hits, count)?);
-        }
-    }
-    Ok((films, hit))
-}
-
-/// The film (and hits) recorded by `record_film_read`, per pixel in ray order.
-fn wait_film(rt: &dyn Runtime, films: Vec<Pending>, hits: Vec<Pending>) -> Result<(Vec<[f32; 4]>, Option<Vec<Hit>>)> {
-    let mut film = Vec::new();
-    for p in films {
-        film.extend(cast::<[f32; 4]>(rt.wait(p)?));
-    }
-    let h = if hits.is_empty() {
-        None
-    } else {
-        let mut v = Vec::new();
-        for p in hits {
-            v.extend(cast::<Hit>(rt.wait(p)?));
-        }
-        Some(v)
-    };
-    Ok((film, h))
-}
-
-/// The film (and hits) read back now.
-fn read_film_now(t: &Tracer, eye: &EyeBuffers, hits: bool) -> Result<(Vec<[f32; 4]>, Option<Vec<Hit>>)> {
-    let mut c = t.rt.begin();
-    let (films, hit) = record_film_read(t, eye, hits, &mut c)?;
-    t.rt.submit(c)?;
-    wait_film(t.rt, films, hit)
-}
 
 /// Records pass `pass` whole into `c`: photons traced and indexed, every batch's eye samples
 /// gathered into its film, and the photons stored read back (to check against the records'
