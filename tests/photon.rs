@@ -759,9 +759,13 @@ fn a_render_whose_device_is_lost_returns_the_passes_before_it() {
     // Beside a device that does not fail: the whole render, as on that device alone. (Lost at
     // its second pass's submission: it shares the work, so it submits fewer passes.)
     let rt = LostAfter { fail_at: count(1) + 1, submits: 0.into() };
+    // (Whether it gets a unit before the other has rendered them all depends on the threads'
+    // timing; that a lost device's units go to the others, whatever the timing: the unit tests
+    // of `integrator::share`.)
     let (img, stats) = render(&[&rt, &NATIVE], 8).unwrap();
     let (want, w) = render(&[&NATIVE], 8).unwrap();
-    assert!(stats.interrupted.is_none() && stats.failed.len() == 1 && stats.failed[0].contains("injected"), "{:?}", stats.failed);
+    assert!(stats.interrupted.is_none() && stats.failed.len() <= 1 && stats.failed.iter().all(|f| f.contains("injected")), "{:?}", stats.failed);
+    assert_eq!(stats.per_device.iter().sum::<u32>(), 4);
     assert!(img.radiance == want.radiance && img.hits == want.hits, "the lost device's units were rendered by the other");
     assert_eq!((stats.passes, stats.emitted, stats.stored), (8, w.emitted, w.stored));
 }
@@ -800,17 +804,21 @@ fn a_render_on_several_devices_is_the_render_on_one() {
     let ts = Tracer::new(&NATIVE, &s, Some(&tr)).unwrap();
     let o = PathOptions { unit_samples: 4, ..PathOptions::path(5, 8, 20) };
     assert!(path::render_on(&[&ts], accel, &cam, &o, &()).unwrap().0.radiance != one.1.radiance, "units of 3 and 4 samples give the same bits");
-    // A batch of rays in units of 100: the same hits on three devices, one lost in its first
-    // units, as on one.
+    // A batch of rays in units of 100: the same hits on three devices, one lost at its first
+    // unit (if it gets one before the others have traced them all), as on one; lost alone, an
+    // error. (That a lost device's units go to the others, whatever the timing: the unit tests
+    // of `integrator::share`.)
     let rays: Vec<kdray::Ray> = common::random_dirs(1000, 7).into_iter().map(|d| kdray::Ray::new([0.5, 0.5, 0.5], d, 0.0, f32::INFINITY)).collect();
     let t1 = Tracer::new(&NATIVE, &s, Some(&tr)).unwrap();
     let want = t1.closest_hits(accel, &rays).unwrap();
-    let lost = LostAfter { fail_at: 2, submits: 0.into() };
+    let lost = LostAfter { fail_at: 1, submits: 0.into() };
     let ts: Vec<Tracer> = [&lost as &dyn Runtime, &two, &three].iter().map(|&rt| Tracer::new(rt, &s, Some(&tr)).unwrap()).collect();
     let refs: Vec<&Tracer> = ts.iter().collect();
+    let e = kdray::integrator::share::closest_hits_on(&refs[..1], accel, &rays, 100).err().expect("no device left");
+    assert!(e.to_string().contains("injected"), "{e}");
     let (hits, per, failed) = kdray::integrator::share::closest_hits_on(&refs, accel, &rays, 100).unwrap();
     assert!(hits == want, "the hits of rays shared out over devices");
-    assert!(failed.len() == 1 && failed[0].contains("injected") && per.iter().sum::<u32>() == 10, "{failed:?} {per:?}");
+    assert!(per[0] == 0 && per.iter().sum::<u32>() == 10 && failed.iter().all(|f| f.contains("injected")), "{failed:?} {per:?}");
     let Some(g) = common::gpu() else { return };
     let twin = kdray::Gpu::open(g.index).unwrap();
     let gpu = (photons(&[g]), paths(&[g]));
