@@ -11,7 +11,7 @@
 //! (`PhotonStats::interrupted`). A rank that dies (killed, crashed) ends the job: plain MPI
 //! has no way for the others to go on (that needs ULFM's fault-tolerant communicators).
 use crate::error::{bail, err, Result};
-use crate::integrator::photon::{PhotonPart, PhotonStats};
+use crate::integrator::photon::{ray_camera, PhotonOptions, PhotonPart, PhotonStats};
 use crate::integrator::share::{FilmSum, Part};
 use kdray_shared::{Camera, Hit};
 use mpi::traits::*;
@@ -46,14 +46,14 @@ impl Job {
 
     /// Adds every rank's part of a photon render up to rank 0: `Some(whole render)` there,
     /// `None` on the others. Every rank must call it once, with its part or the error that
-    /// kept it from rendering (`camera` and `passes` say what an empty part is).
-    pub fn reduce_photons(&self, part: Result<PhotonPart>, camera: &Camera, passes: u32) -> Result<Option<PhotonPart>> {
+    /// kept it from rendering (the render's options and camera say what an empty part is).
+    pub fn reduce_photons(&self, part: Result<PhotonPart>, o: &PhotonOptions, camera: &Camera) -> Result<Option<PhotonPart>> {
         let world = self.universe.world();
         let (rank, size) = (self.rank(), self.size());
         let mut part = part.unwrap_or_else(|e| {
             let n = (camera.width * camera.height) as usize;
             let stats = PhotonStats { interrupted: Some(format!("rank {rank}: {e} (its passes are not in the image)")), ..Default::default() };
-            PhotonPart { sum: FilmSum::new(n), hits: None, stats, camera: *camera, passes }
+            PhotonPart { sum: FilmSum::new(n), hits: None, stats, camera: ray_camera(o, camera), passes: o.passes }
         });
         let mut step = 1u32;
         while step < size {

@@ -315,22 +315,15 @@ pub fn render_on(ts: &[&Tracer], accel: Accel, cam: &Camera, o: &PathOptions, pr
     let mut devices: Vec<(&Tracer, PathBuffers)> = ts.iter().map(|&t| Ok((t, PathBuffers::new(t, accel, cam, o)?))).collect::<Result<_>>()?;
     let names: Vec<String> = ts.iter().map(|t| t.rt.name()).collect();
     progress.start(n as u64 * o.spp as u64);
-    let shared = super::share::share(&mut devices, o.spp.div_ceil(o.unit_samples), super::share::Part::WHOLE, n, |(t, b), hand| path_worker(t, accel, cam, o, b, hand), |k| {
+    let mut shared = super::share::share(&mut devices, o.spp.div_ceil(o.unit_samples), super::share::Part::WHOLE, n, |(t, b), hand| path_worker(t, accel, cam, o, b, hand), |k| {
         progress.advance(k);
         progress.cancelled()
     })?;
     let samples = shared.stats.iter().map(|s| s.1).sum();
-    let failed: Vec<String> = shared.failed.iter().map(|(i, e)| format!("{}: {e}", names[*i])).collect();
+    let (failed, interrupted) = shared.failures(&names, || format!("the image holds {samples} of the {} samples per pixel", o.spp))?;
     if shared.stats.is_empty() {
-        return Err(match shared.failed.into_iter().next() {
-            Some((i, e)) if names.len() > 1 => e.context(&names[i]),
-            Some((_, e)) => e,
-            None => crate::error::err!(InvalidInput: "the render stopped before its first sample"),
-        });
+        bail!(InvalidInput: "the render stopped before its first sample");
     }
-    let interrupted = (!shared.missing.is_empty() && !failed.is_empty()).then(|| {
-        format!("{} (no device left: the image holds {samples} of the {} samples per pixel)", failed.join("; "), o.spp)
-    });
     let mut out = RenderOutput::new(cam.width, cam.height);
     place(&mut out, cam, 0, shared.hits.unwrap_or_else(|| vec![Hit::NONE; n]), shared.sum.film());
     Ok((out, PathStats { samples, seconds: start.elapsed().as_secs_f64(), interrupted, failed, per_device: shared.per_device }))

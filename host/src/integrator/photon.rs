@@ -1052,7 +1052,7 @@ pub fn render_part(maps: &mut [PhotonMap], cam: &Camera, progress: &dyn Progress
     progress.start(mine as u64);
     let start = Instant::now();
     let mut stats = PhotonStats::default();
-    let shared = share::share(
+    let mut shared = share::share(
         &mut devices,
         units,
         part,
@@ -1076,16 +1076,9 @@ pub fn render_part(maps: &mut [PhotonMap], cam: &Camera, progress: &dyn Progress
         last_pass = last_pass.max(Some(u.last_pass));
     }
     stats.last_radius = last_pass.map_or(0.0, |p| pass_radius(r0, o.alpha, p));
-    stats.failed = shared.failed.iter().map(|(i, e)| format!("{}: {e}", names[*i])).collect();
-    stats.per_device = shared.per_device.clone();
-    if shared.stats.is_empty() {
-        if let Some((i, e)) = shared.failed.into_iter().next() {
-            return Err(if names.len() > 1 { e.context(&names[i]) } else { e });
-        }
-    }
-    if !shared.missing.is_empty() && !stats.failed.is_empty() {
-        stats.interrupted = Some(format!("{} (no device left: the image holds {} of the {} passes)", stats.failed.join("; "), stats.passes, o.passes));
-    }
+    let passes = stats.passes;
+    (stats.failed, stats.interrupted) = shared.failures(&names, || format!("the image holds {passes} of the {} passes", o.passes))?;
+    stats.per_device = std::mem::take(&mut shared.per_device);
     Ok(PhotonPart { sum: shared.sum, hits: shared.hits, stats, camera: *cam, passes: o.passes })
 }
 

@@ -205,6 +205,23 @@ pub struct Shared<S> {
     pub per_device: Vec<u32>,
 }
 
+impl<S> Shared<S> {
+    /// What failed, for a render's stats: each failed device as `name: error` (`names` in
+    /// the devices' order), and, when units were left with no device to render them, why the
+    /// render stopped early (`held` says what the image holds). With no unit delivered and a
+    /// device failed, the first failure is the render's error (named when there were several
+    /// devices).
+    pub fn failures(&mut self, names: &[String], held: impl FnOnce() -> String) -> Result<(Vec<String>, Option<String>)> {
+        if self.stats.is_empty() && !self.failed.is_empty() {
+            let (i, e) = self.failed.remove(0);
+            return Err(if names.len() > 1 { e.context(&names[i]) } else { e });
+        }
+        let failed: Vec<String> = self.failed.iter().map(|(i, e)| format!("{}: {e}", names[*i])).collect();
+        let interrupted = (!self.missing.is_empty() && !failed.is_empty()).then(|| format!("{} (no device left: {})", failed.join("; "), held()));
+        Ok((failed, interrupted))
+    }
+}
+
 /// The sum of films, per pixel and component, exactly: each value as a fixed-point number
 /// of 2^-64 in an `i128`, so that the sum is the same in any order — of units, devices or
 /// ranks (`add_sums` merges two). A value of magnitude at most 2^40 is represented to 2^-65

@@ -675,6 +675,44 @@ pub fn run(cli: Cli) -> Result<()> {
             if ray_order == Some(RayOrderArg::Tiles) {
                 cam.order = kdray_shared::ORDER_TILES;
             }
+            // The photon render's options (photons a pass: fewer natively).
+            let photon_options = |native: bool| PhotonOptions {
+                photons: photons.unwrap_or(if native { 1 << 18 } else { 1 << 20 }),
+                passes,
+                time_limit,
+                radius,
+                alpha,
+                index: if photon_index == IndexArg::Kd { IndexKind::Kd } else { IndexKind::Grid },
+                spread,
+                photon_direct,
+                final_gather: match final_gather {
+                    Some(FinalGatherArg::Off) => FinalGather::Off,
+                    Some(FinalGatherArg::Edges) => FinalGather::Edges,
+                    Some(FinalGatherArg::All) => FinalGather::All,
+                    None if photon_direct => FinalGather::Off,
+                    None => FinalGather::Edges,
+                },
+                filter: match filter {
+                    FilterArg::Constant => kdray_shared::FILTER_CONSTANT,
+                    FilterArg::Cone => kdray_shared::FILTER_CONE,
+                    FilterArg::Epanechnikov => kdray_shared::FILTER_EPANECHNIKOV,
+                },
+                photon_bounces: 16,
+                fused: !split_passes,
+                photon_threads,
+                list_points: !gather_every_path,
+                edge_levels: final_gather_levels,
+                grid_window,
+                caustic_radius: 0.5,
+                eye_bounces: bounces,
+                eye_samples: spp,
+                tiles: ray_order != Some(RayOrderArg::Scanline),
+                seed,
+                sampler: sampler.kind(),
+                photon_sampler: photon_sampler.kind(),
+                unit_passes: unit.unwrap_or(0),
+                ..Default::default()
+            };
             let opened = (|| -> Result<(Option<Gpu>, Vec<Box<dyn Runtime>>)> {
             let gpu = match device {
                 _ if devices.is_some() => None,
@@ -705,8 +743,7 @@ pub fn run(cli: Cli) -> Result<()> {
             let (gpu, several) = match (opened, &job) {
                 (Ok(o), _) => o,
                 (Err(e), Some(j)) => {
-                    let o = photon_options_for_mpi(passes, unit, ray_order != Some(RayOrderArg::Scanline));
-                    j.reduce_photons(Err(kdray::Error::InvalidInput(format!("{e:#}"))), &pm::ray_camera(&o, &cam), passes)?;
+                    j.reduce_photons(Err(kdray::Error::InvalidInput(format!("{e:#}"))), &photon_options(false), &cam)?;
                     return Err(e);
                 }
                 (Err(e), None) => return Err(e),
@@ -760,43 +797,7 @@ pub fn run(cli: Cli) -> Result<()> {
                         (r, s.interrupted)
                     }
                     IntegratorArg::Photon => {
-                        let o = PhotonOptions {
-                            photons: photons.unwrap_or(if rt.is_native() { 1 << 18 } else { 1 << 20 }),
-                            passes,
-                            time_limit,
-                            radius,
-                            alpha,
-                            index: if photon_index == IndexArg::Kd { IndexKind::Kd } else { IndexKind::Grid },
-                            spread,
-                            photon_direct,
-                            final_gather: match final_gather {
-                                Some(FinalGatherArg::Off) => FinalGather::Off,
-                                Some(FinalGatherArg::Edges) => FinalGather::Edges,
-                                Some(FinalGatherArg::All) => FinalGather::All,
-                                None if photon_direct => FinalGather::Off,
-                                None => FinalGather::Edges,
-                            },
-                            filter: match filter {
-                                FilterArg::Constant => kdray_shared::FILTER_CONSTANT,
-                                FilterArg::Cone => kdray_shared::FILTER_CONE,
-                                FilterArg::Epanechnikov => kdray_shared::FILTER_EPANECHNIKOV,
-                            },
-                            photon_bounces: 16,
-                            fused: !split_passes,
-                            photon_threads,
-                            list_points: !gather_every_path,
-                            edge_levels: final_gather_levels,
-                            grid_window,
-                            caustic_radius: 0.5,
-                            eye_bounces: bounces,
-                            eye_samples: spp,
-                            tiles: ray_order != Some(RayOrderArg::Scanline),
-                            seed,
-                            sampler: sampler.kind(),
-                            photon_sampler: photon_sampler.kind(),
-                            unit_passes: unit.unwrap_or(0),
-                            ..Default::default()
-                        };
+                        let o = photon_options(rt.is_native());
                         let mut maps: Vec<PhotonMap> = ts.iter().map(|&t| PhotonMap::new(t, accel, tree, &scene, o.clone())).collect::<Result<_, kdray::Error>>()?;
                         let pb = if loud { progress_passes() } else { ProgressBar::hidden() };
                         let (r, s) = match &job {
@@ -807,7 +808,7 @@ pub fn run(cli: Cli) -> Result<()> {
                                 if let Err(e) = &part {
                                     eprintln!("error: rank {}: {e}", j.rank());
                                 }
-                                match j.reduce_photons(part, &pm::ray_camera(&o, &cam), o.passes)? {
+                                match j.reduce_photons(part, &o, &cam)? {
                                     Some(whole) => (whole.image(), whole.stats),
                                     None => return Ok(None),
                                 }
@@ -844,8 +845,7 @@ pub fn run(cli: Cli) -> Result<()> {
                 // Another rank of the MPI job writes the image.
                 (Ok(None), _) => return Ok(()),
                 (Err(e), Some(j)) if !reduced.get() => {
-                    let o = photon_options_for_mpi(passes, unit, ray_order != Some(RayOrderArg::Scanline));
-                    j.reduce_photons(Err(kdray::Error::InvalidInput(format!("{e:#}"))), &pm::ray_camera(&o, &cam), passes)?;
+                    j.reduce_photons(Err(kdray::Error::InvalidInput(format!("{e:#}"))), &photon_options(false), &cam)?;
                     return Err(e);
                 }
                 (Err(e), _) => return Err(e),
@@ -895,7 +895,7 @@ impl Job {
     fn part(&self) -> kdray::integrator::share::Part {
         match *self {}
     }
-    fn reduce_photons(&self, _: kdray::Result<pm::PhotonPart>, _: &kdray_shared::Camera, _: u32) -> kdray::Result<Option<pm::PhotonPart>> {
+    fn reduce_photons(&self, _: kdray::Result<pm::PhotonPart>, _: &PhotonOptions, _: &kdray_shared::Camera) -> kdray::Result<Option<pm::PhotonPart>> {
         match *self {}
     }
 }
@@ -909,11 +909,6 @@ fn open_job(mpi: bool) -> Result<Option<Job>> {
     return Ok(Some(kdray::mpi::Job::init()?));
     #[cfg(not(feature = "mpi"))]
     bail!("--mpi: this kdray was built without MPI (cargo build --release --features mpi, with Open MPI and libclang installed: scripts/setup.sh --mpi)")
-}
-
-/// The options that decide how an MPI rank's empty part looks (the camera's ray order).
-fn photon_options_for_mpi(passes: u32, unit: Option<u32>, tiles: bool) -> PhotonOptions {
-    PhotonOptions { passes, unit_passes: unit.unwrap_or(0), tiles, ..Default::default() }
 }
 
 /// The spread of `--emission`: 0 for independent photons.
