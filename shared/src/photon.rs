@@ -24,6 +24,7 @@
 use crate::kdtree::{leaves_in_box, KdNode};
 use bytemuck::{Pod, Zeroable};
 use glam::UVec4;
+use core::mem::MaybeUninit;
 use crate::query::{Answer, Closest, Near, Query};
 use crate::trace::Method;
 use crate::kernel::{AtomicStore, Store};
@@ -624,7 +625,8 @@ pub trait PhotonIndex {
 /// modulo w, so the cells of one query never share a bucket: each is visited once, with no
 /// bookkeeping. Smaller cells (w = 3) visit about half the area (9r² against 16r²) in more,
 /// smaller cells; smaller still (windows of 4 and 5) tested fewer photons but ran 10–25 %
-/// slower (H200, `docs/gpu-runs/2026-12-03-gather-order-h200.md`). A block's cells are
+/// slower (H200, `docs/gpu-runs/2026-12-03-gather-order-h200.md`), and 15–40 % slower with
+/// runs listed before the photon loop (H100, `docs/gpu-runs/2026-12-05-gather-runs-h100.md`). A block's cells are
 /// sorted together, as one segment (`sort::segment_offsets`: its offsets at `offset_slot`), so
 /// that each row of a window within a block is one run.
 pub struct HashGrid {
@@ -707,55 +709,81 @@ impl PhotonIndex for HashGrid {
         let (mut y, mut qy, mut my) = (lo[1], qy0, my0);
         let (mut z, mut qz, mut mz) = (lo[2], lo[2] / w, lo[2] % w);
         let mut second = false;
+        // First every run's photons (`sorted.run`), in visiting order, the empty ones left
+        // out; then one loop over their photons, in the same order as before. Computing a run
+        // (hashes, offsets) inside the photon loop made a subgroup take that step at nearly
+        // every photon step (its lanes reach the ends of their runs at different steps, and
+        // an empty row, most of a window around a floor's point, cost a step): the gather at
+        // ~50 photons a point took 15–25 % longer on the H100 (2026-12-05). Not initialised
+        // (a store per entry otherwise, 2–4 %): entries below `count` are written before they
+        // are read.
+        let mut runs = [MaybeUninit::<[u32; 2]>::uninit(); MAX_RUNS];
+        let mut count = 0usize;
+        while z <= hi[2] {
+            let hy = pcg_hash(qy ^ pcg_hash(qz));
+            let place = w * (my + w * mz);
+            let (block, o, len) = if second { (pcg_hash((qx0 + 1) ^ hy), 0, n - first_run) } else { (pcg_hash(qx0 ^ hy), mx0, first_run) };
+            let s = ((block & (self.blocks - 1)) + first_block) * (w3 + 1) + place + o;
+            let (j, b) = sorted.run(s, s + len);
+            // Stored whatever it holds, kept (counted) only if it holds photons. At most
+            // MAX_RUNS runs: w ≤ 3 rows per axis, two runs a row.
+            runs[count.min(MAX_RUNS - 1)] = MaybeUninit::new([j, b]);
+            count += (j < b) as usize;
+            // The next run: this row's second part, or the next row.
+            if !second && first_run < n {
+                second = true;
+            } else {
+                second = false;
+                y += 1;
+                my += 1;
+                if my == w {
+                    my = 0;
+                    qy += 1;
+                }
+                if y > hi[1] {
+                    (y, qy, my) = (lo[1], qy0, my0);
+                    z += 1;
+                    mz += 1;
+                    if mz == w {
+                        mz = 0;
+                        qz += 1;
+                    }
+                }
+            }
+        }
         // One loop over the photons of every run (a run's photons, or the next run): the
         // lanes of a subgroup step through photons together even where their runs differ in
         // length, instead of waiting at the end of each run for the longest.
+        let count = count.min(MAX_RUNS);
+        let mut next = 0usize;
         let (mut j, mut b) = (0u32, 0u32);
         loop {
-            if j < b {
-                // Two photons a step: both loads are issued before either is tested. A run's
-                // odd last photon is paired with `PADDING` (counted by no test): no separate
-                // step for one photon, which the other lanes waited on.
-                let j1 = (j + 1).min(b - 1);
-                // SAFETY: j ≤ j1 < b, and `run` clamps b to the words held.
-                let (w0, w1) = unsafe { (sorted.word(j), sorted.word(j1)) };
-                let w1 = if j1 > j { w1 } else { PADDING };
-                v.word(w0, j, sorted);
-                v.word(w1, j1, sorted);
-                j = (j + 2).min(b);
-            } else if z <= hi[2] {
-                let hy = pcg_hash(qy ^ pcg_hash(qz));
-                let place = w * (my + w * mz);
-                let (block, o, len) = if second { (pcg_hash((qx0 + 1) ^ hy), 0, n - first_run) } else { (pcg_hash(qx0 ^ hy), mx0, first_run) };
-                let s = ((block & (self.blocks - 1)) + first_block) * (w3 + 1) + place + o;
-                (j, b) = sorted.run(s, s + len);
-                // The next run: this row's second part, or the next row.
-                if !second && first_run < n {
-                    second = true;
-                } else {
-                    second = false;
-                    y += 1;
-                    my += 1;
-                    if my == w {
-                        my = 0;
-                        qy += 1;
-                    }
-                    if y > hi[1] {
-                        (y, qy, my) = (lo[1], qy0, my0);
-                        z += 1;
-                        mz += 1;
-                        if mz == w {
-                            mz = 0;
-                            qz += 1;
-                        }
-                    }
+            if j >= b {
+                if next >= count {
+                    break;
                 }
-            } else {
-                break;
+                // SAFETY: next < count, and entries below count were written above.
+                [j, b] = unsafe { runs[next].assume_init() };
+                next += 1;
             }
+            // Two photons a step: both loads are issued before either is tested. A run's odd
+            // last photon is paired with `PADDING` (counted by no test): no separate step for
+            // one photon, which the other lanes waited on.
+            let j1 = (j + 1).min(b - 1);
+            // SAFETY: j ≤ j1 < b (a kept run is not empty), and `run` clamps b to the words
+            // held.
+            let (w0, w1) = unsafe { (sorted.word(j), sorted.word(j1)) };
+            let w1 = if j1 > j { w1 } else { PADDING };
+            v.word(w0, j, sorted);
+            v.word(w1, j1, sorted);
+            j = (j + 2).min(b);
         }
     }
 }
+
+/// Most runs of photons a grid query visits: windows of at most three cells per axis
+/// (`grid_window`), each row of a window one run or two (where it crosses into the next block).
+const MAX_RUNS: usize = 2 * 3 * 3;
 
 /// (A) The paper's index: the geometry kd-tree's leaves, each subdivided into a grid of cells
 /// of about the gather radius (`LeafCells`, one entry per node); a photon's leaf is found by
