@@ -158,7 +158,11 @@ fn check_index(map: &PhotonMap, tree: &KdTreeData, records: &[Photon], what: &st
             let tolerance = half_steps * step + origin_error + (q[a].abs() as f64) * f32::EPSILON as f64;
             assert!(((q[a] - r.position[a]) as f64).abs() <= tolerance, "{what}: word at {q:?} for a photon at {:?}", r.position);
         }
-        assert_eq!((w.normal_bits(), w.power()), (r.packed & 0xffff, r.power()), "{what}: a word's normal or power is not its photon's");
+        assert_eq!(w.power(), r.power(), "{what}: a word's power is not its photon's");
+        // The word's normal: its photon's octahedral normal, halved in whole numbers
+        // (`normal_bytes`: at most 0.7° off).
+        let dot = Vec3::from(w.normal()).dot(Vec3::from(r.normal()));
+        assert!(dot >= 0.9999, "{what}: a word's normal is not its photon's ({:?} vs {:?})", w.normal(), r.normal());
         of_word.entry(w).or_default().push(if p.maps > 1 && r.is_caustic() { 1 } else { 0 });
     }
     // The word that pads a gather step counts nowhere, not even at its own coordinates.
@@ -273,6 +277,27 @@ fn photon_word_frames_are_powers_of_two_within_a_factor_two() {
             }
         }
     }
+}
+
+/// Every octahedral normal (all 2^16 codes) as a word's three bytes (`normal_bytes`): within
+/// 0.7° of the code's direction, the bytes in range and the z byte clear of the padding bit,
+/// and the word's normal (`PhotonWord::normal`) that direction.
+#[test]
+fn photon_word_normals_are_the_octahedral_normals_within_a_degree() {
+    let frame = WordFrame::new(&kdray_shared::IndexParams { bounds_max: [1.0; 3], ..Default::default() });
+    let mut worst = 1.0f32;
+    for oct in 0..1u32 << 16 {
+        let n = kdray_shared::photon::decode_oct(oct, 8);
+        let b = kdray_shared::photon::normal_bytes(oct);
+        assert!(b.iter().all(|&v| v < 256), "code {oct:#x}: bytes {b:?}");
+        let ph = Photon { position: [0.5; 3], packed: oct, ..Default::default() };
+        let w = PhotonWord::of(&ph, &frame);
+        assert!(!kdray_shared::photon::is_padding(w.word), "code {oct:#x}: a normal sets the padding bit");
+        let dot = Vec3::from(w.normal()).dot(Vec3::from(n));
+        worst = worst.min(dot);
+        assert!(dot >= (0.7f32).to_radians().cos() - 1e-6, "code {oct:#x}: {:?} against {n:?}", w.normal());
+    }
+    assert!(worst < 0.99999, "no code was rounded at all ({worst}): the test would not see a wrong halving");
 }
 
 #[test]

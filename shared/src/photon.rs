@@ -110,7 +110,8 @@ pub fn encode_oct(n: [f32; 3], bits: u32) -> u32 {
 
 /// The direction of an `encode_oct` word of 2 × `bits` bits, not normalised (a point of the
 /// octahedron |x| + |y| + |z| = 1): enough for a test of the angle to another vector, without
-/// the square root and division of `decode_oct` (`Disc::test` uses it scaled: `word_normal`).
+/// the square root and division of `decode_oct` (a photon word holds it scaled and halved in
+/// whole numbers: `normal_bytes`).
 #[inline(always)]
 pub fn oct_vector(v: u32, bits: u32) -> [f32; 3] {
     let mask = (1u32 << bits) - 1;
@@ -192,11 +193,11 @@ fn biased(m: u32) -> f32 {
 
 /// A photon of the index (cell order) as the gather reads it: everything a gather needs in one
 /// 16-byte word, loaded in one vector access — its position in fixed point over the scene box
-/// (`WordFrame`, 23 bits an axis), its normal (`Photon::packed`'s 16 bits: the octahedral
-/// coordinates' two bytes) and its power (RGB9E5).
+/// (`WordFrame`, 23 bits an axis), its normal (`Photon::packed`'s octahedral normal unfolded
+/// into a vector of whole numbers, three bytes: `normal_bytes`) and its power (RGB9E5).
 ///
-/// Bits: `x` = qx | normal's first byte << 24; `y` = qy | its second byte << 24; `z` = qz
-/// (bit 31: `is_padding`); `w` = power.
+/// Bits: `x` = qx | the normal's x byte << 24; `y` = qy | its y byte << 24; `z` = qz | its z
+/// byte << 23 (bit 31: `is_padding`); `w` = power.
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Hash, Pod, Zeroable)]
 pub struct PhotonWord {
@@ -277,23 +278,19 @@ impl PhotonWord {
     #[inline(always)]
     pub fn of(ph: &Photon, frame: &WordFrame) -> PhotonWord {
         let q = frame.encode(ph.position);
-        let n = ph.packed & 0xffff;
-        PhotonWord { word: UVec4::new(q[0] | (n & 0xff) << 24, q[1] | (n >> 8) << 24, q[2], ph.power) }
+        let n = normal_bytes(ph.packed & 0xffff);
+        PhotonWord { word: UVec4::new(q[0] | n[0] << 24, q[1] | n[1] << 24, q[2] | n[2] << 23, ph.power) }
     }
     /// Where the photon landed, to a step of `frame`.
     #[inline(always)]
     pub fn position(&self, frame: &WordFrame) -> [f32; 3] {
         frame.position(self.word)
     }
-    /// The octahedral normal's 16 bits (`Photon::packed`'s).
-    #[inline(always)]
-    pub fn normal_bits(&self) -> u32 {
-        (self.word.x >> 24) | (self.word.y >> 24) << 8
-    }
-    /// Unit surface normal on the side the photon arrived from.
+    /// Unit surface normal on the side the photon arrived from (`normal_bytes`' vector,
+    /// normalised).
     #[inline(always)]
     pub fn normal(&self) -> [f32; 3] {
-        decode_oct(self.normal_bits(), 8)
+        normalize3(word_normal(self.word))
     }
     /// The photon's power (RGB).
     #[inline(always)]
@@ -302,20 +299,32 @@ impl PhotonWord {
     }
 }
 
-/// 255 × `oct_vector` of a word's normal bytes, in whole numbers (exact: no rounding on any
-/// runtime; `biased` instead of conversions). The gather's normal test does not depend on the
-/// vector's length.
+/// An octahedral normal of 2 × 8 bits (`encode_oct`) as the three bytes a photon word holds:
+/// `oct_vector` × 255 in whole numbers (each in −255..=255, unfolded on the lower half by
+/// integer arithmetic), halved (rounded down) and stored plus 128. Integers only, so every
+/// runtime writes the same bytes; the gather then reads a vector without the octahedral fold
+/// (`word_normal`: seven operations a photon fewer). Halving moves the direction by at most
+/// 0.7° (an error of at most 1 per component of a vector of length at least 255/√3).
+#[inline(always)]
+pub fn normal_bytes(oct: u32) -> [u32; 3] {
+    let x = 2 * (oct & 0xff) as i32 - 255;
+    let y = 2 * ((oct >> 8) & 0xff) as i32 - 255;
+    let z = 255 - x.abs() - y.abs();
+    let t = (-z).max(0);
+    // x, y odd: never 0, so each moves towards 0 by t.
+    let toward_zero = |v: i32| if v < 0 { v + t } else { v - t };
+    let (x, y) = (toward_zero(x), toward_zero(y));
+    let byte = |v: i32| ((v >> 1) + 128) as u32;
+    [byte(x), byte(y), byte(z)]
+}
+
+/// The normal vector of a word's bytes (`normal_bytes`), in whole numbers (−128..=127; exact
+/// on any runtime: `biased` and one exact subtraction, no conversions). The gather's normal
+/// test does not depend on the vector's length.
 #[inline(always)]
 fn word_normal(w: UVec4) -> [f32; 3] {
-    // 2b − 255 for byte b: biased(2b) − (2^23 + 255), one exact subtraction (no multiply-add
-    // for a driver to fuse, split, or move the subtraction into).
-    let x = biased((w.x >> 23) & 0x1fe) - (TWO_23 + 255.0);
-    let y = biased((w.y >> 23) & 0x1fe) - (TWO_23 + 255.0);
-    let z = 255.0 - x.abs() - y.abs();
-    let t = (-z).max(0.0);
-    // x ∓ t by x's sign (x is odd, never 0): the sign bit moved onto t instead of a select.
-    let signed = |t: f32, x: f32| f32::from_bits(t.to_bits() | (x.to_bits() & 0x8000_0000));
-    [x - signed(t, x), y - signed(t, y), z]
+    const BIAS: f32 = TWO_23 + 128.0;
+    [biased(w.x >> 24) - BIAS, biased(w.y >> 24) - BIAS, biased((w.z >> 23) & 0xff) - BIAS]
 }
 
 /// The index's photons in cell order: cell c's are `offsets[s]..offsets[s + 1]` of `words`,
