@@ -635,9 +635,9 @@ pub trait PhotonIndex {
 /// bookkeeping. Smaller cells (w = 3) visit about half the area (9r² against 16r²) in more,
 /// smaller cells; smaller still (windows of 4 and 5) tested fewer photons but ran 10–25 %
 /// slower (H200, `docs/gpu-runs/2026-12-03-gather-order-h200.md`), and 15–40 % slower with
-/// runs listed before the photon loop (H100, `docs/gpu-runs/2026-12-05-gather-runs-h100.md`). A block's cells are
-/// sorted together, as one segment (`sort::segment_offsets`: its offsets at `offset_slot`), so
-/// that each row of a window within a block is one run.
+/// runs listed before the photon loop (H100, `docs/gpu-runs/2026-12-05-gather-runs-h100.md`).
+/// A block's cells are sorted together, as one segment (`sort::segment_offsets`: its offsets
+/// at `offset_slot`), so that each row of a window within a block is one run.
 pub struct HashGrid {
     /// The scene box's minimum corner; cells are counted from one cell below it.
     pub origin: [f32; 3],
