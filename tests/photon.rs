@@ -150,12 +150,13 @@ fn check_index(map: &PhotonMap, tree: &KdTreeData, records: &[Photon], what: &st
         let field = frame.encode(r.position);
         for a in 0..3 {
             // Within half a step of where the photon landed (a step at the box's far end, where
-            // the coordinate is clamped), plus the rounding of the frame's origin and of the
-            // decoding.
+            // the coordinate is clamped), plus the rounding of the frame's origin, of the
+            // encoding's subtraction of the box's corner and of the decoding.
             let step = frame.step[a] as f64;
             let origin_error = (frame.origin[a] as f64 - (p.bounds_min[a] as f64 - 8_388_608.0 * step)).abs();
             let half_steps = if field[a] == (1 << kdray_shared::photon::WORD_BITS) - 1 { 1.0 } else { 0.5 };
-            let tolerance = half_steps * step + origin_error + (q[a].abs() as f64) * f32::EPSILON as f64;
+            let encode_error = ((r.position[a] - p.bounds_min[a]).abs() as f64) * f32::EPSILON as f64;
+            let tolerance = half_steps * step + origin_error + encode_error + (q[a].abs() as f64) * f32::EPSILON as f64;
             assert!(((q[a] - r.position[a]) as f64).abs() <= tolerance, "{what}: word at {q:?} for a photon at {:?}", r.position);
         }
         assert_eq!(w.power(), r.power(), "{what}: a word's power is not its photon's");
@@ -325,6 +326,27 @@ fn photon_indices_hold_every_photon_in_its_cell_and_gather_like_brute_force() {
                 check_index(&map, &tr, &map.read_records().unwrap(), &format!("{what}, pass 1"), 1);
             }
         }
+    }
+}
+
+/// The kd index gives every leaf of the tree at least one cell, so a tree with more leaves
+/// than twice the photons (the index's budget before) needs more cells: the conference room
+/// with 2 000 photons a pass. Before, the leaves' cells ran past the offsets (natively a panic
+/// out of bounds in the gather; on a GPU reads past the buffer).
+#[test]
+fn the_kd_photon_index_has_a_cell_for_every_leaf() {
+    let s = scene::load("conference").unwrap();
+    let tr = tree(&s);
+    let leaves = tr.nodes.iter().filter(|n| n.is_leaf()).count();
+    for rt in runtimes() {
+        let t = Tracer::new(rt, &s, Some(&tr)).unwrap();
+        let what = format!("conference on {}, kd index, 2 000 photons", rt.name());
+        let mut map = PhotonMap::new(&t, Accel::kd(Algorithm::ShortStack(3)), Some(&tr), &s, small_options(IndexKind::Kd, 2_000)).unwrap();
+        let stored = map.trace_and_index(0).unwrap();
+        assert!(leaves as u64 > 2 * map.capacity() as u64, "{what}: {leaves} leaves, {} photons' room: the test needs more leaves", map.capacity());
+        let records = map.read_records().unwrap();
+        assert_eq!(records.len(), stored as usize, "{what}");
+        check_index(&map, &tr, &records, &what, 0);
     }
 }
 

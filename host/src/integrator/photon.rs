@@ -238,6 +238,10 @@ pub fn pass_radius(r0: f32, alpha: f32, pass: u32) -> f32 {
 /// 0.978 → 0.936 %; `docs/gpu-runs/2026-12-03-edge-geometry-h200.md`).
 pub const PHOTONS_PER_GATHER: f64 = 85.0;
 
+/// The kd index's data: each kd-tree node's box if it is a leaf, the leaves' cells on the
+/// device, the tree's nodes on the device.
+type KdIndexData<'t> = (Vec<Option<([f32; 3], [f32; 3])>>, Buffer<LeafCells>, &'t Buffer<KdNode>);
+
 /// The photon map's device buffers and the scene-derived sizes.
 pub struct PhotonMap<'t> {
     t: &'t Tracer<'t>,
@@ -268,7 +272,7 @@ pub struct PhotonMap<'t> {
     /// The kd-tree's root cell (the traversals' scene box).
     tree_bounds: ([f32; 3], [f32; 3]),
     /// The kd index: each leaf's box (host), the cell table, the tree's nodes on the device.
-    kd: Option<(Vec<Option<([f32; 3], [f32; 3])>>, Buffer<LeafCells>, &'t Buffer<KdNode>)>,
+    kd: Option<KdIndexData<'t>>,
     r0: f32,
     /// Each triangle's open edges (`scene::open_edges`), with `FinalGather::Edges`.
     open_edges: Option<Buffer<u32>>,
@@ -371,7 +375,7 @@ impl<'t> PhotonMap<'t> {
                 Some((leaf_boxes(&tree.nodes, tree.bounds.min, tree.bounds.max), rt.alloc("kd leaf cells", tree.nodes.len())?, nodes))
             }
         };
-        let cells = Self::cells_for(o.index, capacity, o.grid_window);
+        let cells = Self::cells_for(o.index, capacity, o.grid_window, Self::leaf_count(&kd))?;
         let sort = Self::sort_for(rt, o.index, o.grid_window, cells, maps, capacity)?;
         Ok(PhotonMap {
             t,
@@ -399,15 +403,29 @@ impl<'t> PhotonMap<'t> {
     }
 
     /// Cells per map: the grid's buckets (a power of two of blocks of window³ cells, about
-    /// the photon count), or the kd index's budget.
-    fn cells_for(kind: IndexKind, capacity: u32, window: u32) -> u32 {
-        match kind {
+    /// the photon count), or the kd index's budget: twice the photons, and at least a cell per
+    /// leaf of the tree (`leaves`; `leaf_cells` gives every leaf one at the least, so with
+    /// fewer cells than leaves the leaves' cells would run past the offsets).
+    fn cells_for(kind: IndexKind, capacity: u32, window: u32, leaves: u32) -> Result<u32> {
+        Ok(match kind {
             IndexKind::Grid => {
                 let w3 = window * window * window;
                 capacity.div_ceil(w3).next_power_of_two().min(1 << 25) * w3
             }
-            IndexKind::Kd => capacity.saturating_mul(2).min(1 << 30),
-        }
+            IndexKind::Kd => {
+                const MAX: u32 = 1 << 30;
+                if leaves > MAX {
+                    bail!(TooLarge: "the kd photon index needs a cell per leaf of the kd-tree, and its {leaves} leaves are more than {MAX} (use the grid index)");
+                }
+                capacity.saturating_mul(2).max(leaves).min(MAX)
+            }
+        })
+    }
+
+    /// The kd index's leaves (each takes at least one of its cells): the tree's leaves that
+    /// hold a box; none for the grid.
+    fn leaf_count(kd: &Option<KdIndexData<'_>>) -> u32 {
+        kd.as_ref().map_or(0, |(boxes, _, _)| boxes.iter().filter(|b| b.is_some()).count() as u32)
     }
 
     /// The index's counting sort, as the kernels expect it (`photon::sort_params`: by segments
@@ -429,9 +447,14 @@ impl<'t> PhotonMap<'t> {
         self.sorted = rt.alloc("sorted photon", capacity as usize)?;
         self.keys = rt.alloc("photon cell", capacity as usize)?;
         self.capacity = capacity;
-        self.cells = Self::cells_for(self.o.index, capacity, self.o.grid_window);
+        self.cells = Self::cells_for(self.o.index, capacity, self.o.grid_window, Self::leaf_count(&self.kd))?;
         self.sort = Self::sort_for(rt, self.o.index, self.o.grid_window, self.cells, self.maps, capacity)?;
         Ok(())
+    }
+
+    /// Photons a pass's records hold room for (grown when a pass stores more).
+    pub fn capacity(&self) -> u32 {
+        self.capacity
     }
 
     /// The first pass's global radius.
@@ -610,9 +633,12 @@ impl<'t> PhotonMap<'t> {
             disc: Disc,
             visited: u64,
             found: u64,
+            /// Words passed, padding included (two a step).
+            words: u64,
         }
         impl CellVisitor for Count {
             fn word(&mut self, w: glam::UVec4, _j: u32, _sorted: &SortedPhotons) {
+                self.words += 1;
                 if kdray_shared::photon::is_padding(w) {
                     return;
                 }
@@ -628,14 +654,32 @@ impl<'t> PhotonMap<'t> {
         let r = p.radius[0];
         let mut s = QueryStats::default();
         let mut run = |index: &dyn Fn(&mut Count)| {
-            for k in (0..count as usize).step_by(stride.max(1) as usize) {
-                if paths[k].flags & kdray_shared::PATH_GATHER != 0 {
-                    let mut c = Count { disc: Disc::new(&p, rays[k].origin, rays[k].dir, r), visited: 0, found: 0 };
+            let gather = |k: usize| {
+                (paths[k].flags & kdray_shared::PATH_GATHER != 0).then(|| {
+                    let mut c = Count { disc: Disc::new(&p, rays[k].origin, rays[k].dir, r), visited: 0, found: 0, words: 0 };
                     index(&mut c);
+                    c
+                })
+            };
+            for k in (0..count as usize).step_by(stride.max(1) as usize) {
+                if let Some(c) = gather(k) {
                     s.points += 1;
                     s.visited += c.visited;
                     s.found += c.found;
                 }
+            }
+            // Groups of 32 consecutive paths, every `stride`-th.
+            for g in (0..count as usize / 32).step_by(stride.max(1) as usize) {
+                let (mut lanes, mut most) = (0u64, 0u64);
+                for k in g * 32..g * 32 + 32 {
+                    if let Some(c) = gather(k) {
+                        let steps = c.words.div_ceil(2);
+                        lanes += 1;
+                        most = most.max(steps);
+                        s.lane_steps += steps;
+                    }
+                }
+                s.group_steps += lanes * most;
             }
         };
         match &self.kd {
@@ -797,6 +841,12 @@ pub struct QueryStats {
     pub visited: u64,
     /// Photons that counted (within the radius, on the point's side).
     pub found: u64,
+    /// Steps (two photons each, `HashGrid::visit`'s) of the gather points of sampled groups of
+    /// 32 consecutive paths (a subgroup's, on the GPU), summed over those points.
+    pub lane_steps: u64,
+    /// The same groups' longest gathers: per group, its gather points times the most steps any
+    /// of them took (a subgroup takes as long as its longest lane), summed.
+    pub group_steps: u64,
 }
 
 impl QueryStats {
@@ -807,6 +857,11 @@ impl QueryStats {
     /// Photons tested per gather point.
     pub fn visited_per_point(&self) -> f64 {
         self.visited as f64 / self.points.max(1) as f64
+    }
+    /// How evenly the gathers of a group of 32 paths share its time: the steps they take over
+    /// those of the longest, times the group's gather points (1: every lane busy to the end).
+    pub fn group_balance(&self) -> f64 {
+        self.lane_steps as f64 / self.group_steps.max(1) as f64
     }
 }
 

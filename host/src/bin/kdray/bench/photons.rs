@@ -88,7 +88,7 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
     o.progress.set_length(specs.len() as u64 * 2);
     let speed_header: Vec<String> = [
         "scene", "triangles", "photons", "rays traced", "bounces", "bounces/photon", "stored", "trace ms", "M bounces/s", "BVH trace ms", "BVH M bounces/s",
-        "split trace ms", "trace parts: emit only / first hit only / no stores ms", "index grid ms", "grid keys+ranks / offsets / place ms", "cells, slots", "index kd ms", "eye ms", "BVH eye ms", "gather grid ms", "gather grid: found / tested per point", "gather grid at ~50 found ms (found / tested)", "gather grid, 8×8 tiles: default / ~50 found ms", "gather grid 2r ms", "gather kd ms", "BVH eye + final gather + gather ms", "image",
+        "split trace ms", "trace parts: emit only / first hit only / no stores ms", "index grid ms", "grid keys+ranks / offsets / place ms", "cells, slots", "index kd ms", "eye ms", "BVH eye ms", "gather grid ms", "gather grid: found / tested per point", "gather grid at ~50 found ms (found / tested)", "gather grid, 8×8 tiles: default / ~50 found ms (subgroup balance)", "gather grid 2r ms", "gather kd ms", "BVH eye + final gather + gather ms", "image",
     ]
     .map(String::from)
     .to_vec();
@@ -189,8 +189,10 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
             rt.submit(c)?;
             let gt = time_recorded(rt, copies, &|c| rt.dispatch(c, &grid.gather(0, n as u32, &fb, &gp)))?;
             let g50t = time_recorded(rt, copies, &|c| rt.dispatch(c, &m50.gather(0, n as u32, &fb, &gp)))?;
+            // How evenly a subgroup's 32 gathers (8 × 4 pixels) share its time at ~50 found.
+            let balance = m50.query_stats(0, &fb, n as u32, 61)?.group_balance();
             drop(m50);
-            let gt = format!("{gt:.3} / {g50t:.3}");
+            let gt = format!("{gt:.3} / {g50t:.3} ({balance:.2})");
             // Eye paths to their first points, resumed to the second, the gather there (no
             // caustic gather at the first point: the whole final gather but that).
             let fg = time_recorded(rt, copies, &|c| {
