@@ -215,6 +215,26 @@ pub fn direction_around(axis: [f32; 3], cos_theta: f32, u: f32) -> [f32; 3] {
     add3(add3(scale3(t, sin_theta * c), scale3(b, sin_theta * s)), scale3(axis, cos_theta))
 }
 
+/// ⌊√n⌋, bit by bit: integers only, so every runtime gives the same root (a GPU's float square
+/// root need not be correctly rounded). Fifteen steps at most.
+#[inline(always)]
+pub fn isqrt(n: u32) -> u32 {
+    let (mut n, mut root, mut bit) = (n, 0u32, 1u32 << 30);
+    while bit > n {
+        bit >>= 2;
+    }
+    while bit != 0 {
+        if n >= root + bit {
+            n -= root + bit;
+            root = (root >> 1) + bit;
+        } else {
+            root >>= 1;
+        }
+        bit >>= 2;
+    }
+    root
+}
+
 /// 2^k as f32 for k in [−126, 127].
 #[inline(always)]
 pub fn exp2i(k: i32) -> f32 {

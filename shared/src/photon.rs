@@ -29,12 +29,12 @@ use crate::query::{Answer, Closest, Near, Query};
 use crate::trace::Method;
 use crate::kernel::{AtomicStore, Store};
 use crate::math::{
-    add3, cosine_direction, cross3, direction_around, dist2_point_segment, dist2_point_triangle, dot3, exp2i, floor_u32, fma, fract_pos, mul3,
-    normalize3, scale3, sqrt, sub3,
+    add3, cosine_direction, cross3, direction_around, dist2_point_segment, dist2_point_triangle, dot3, exp2i, floor_u32, fma, fract_pos, isqrt,
+    mul3, normalize3, scale3, sqrt, sub3,
 };
 use crate::parts::Parts;
 use crate::pod::{
-    Hit, IndexParams, LeafCells, Light, Material, PathState, Photon, PhotonParams, PhotonPath, SortParams, Triangle, FILTER_CONE, INDEX_KD,
+    Hit, IndexParams, LeafCells, Light, Material, PathState, Photon, PhotonParams, PhotonPath, SortParams, Triangle, FILTER_CONE, FILTER_CONSTANT, INDEX_KD,
     FILTER_EPANECHNIKOV, GATHER_EDGES, GATHER_LISTED, LIGHT_POINT, LIGHT_SPOT, MAT_MIRROR, PATH_GATHER, PATH_NEAR_EDGE, PHOTON_ACTIVE, PHOTON_SPECULAR_ONLY,
     PHOTON_STORE_DIRECT,
 };
@@ -299,28 +299,44 @@ impl PhotonWord {
     }
 }
 
+/// The length of the normal vectors of photon words (`normal_bytes`), to within 0.9.
+pub const NORMAL_LENGTH: f32 = 127.0;
+
 /// An octahedral normal of 2 × 8 bits (`encode_oct`) as the three bytes a photon word holds:
-/// `oct_vector` × 255 in whole numbers (each in −255..=255, unfolded on the lower half by
-/// integer arithmetic), halved (rounded down) and stored plus 128. Integers only, so every
-/// runtime writes the same bytes; the gather then reads a vector without the octahedral fold
-/// (`word_normal`: seven operations a photon fewer). Halving moves the direction by at most
-/// 0.7° (an error of at most 1 per component of a vector of length at least 255/√3).
+/// the direction as a vector of length `NORMAL_LENGTH` in whole numbers (each in −127..=127),
+/// stored plus 128. By integer arithmetic alone, so every runtime writes the same bytes:
+/// `oct_vector` × 255 (unfolded on the lower half), its length by an integer square root
+/// (× 16), each component scaled by 127 over it in a rounded division. Each component is off
+/// by at most 1/2 (and the length by 1/16 of a unit), so the direction is within 0.4° of the
+/// code's and the length within 0.9 of 127: the gather reads a vector without the octahedral
+/// fold (`word_normal`) and tests it by one dot product against a fixed bound (`Disc::test`),
+/// not against its length.
 #[inline(always)]
 pub fn normal_bytes(oct: u32) -> [u32; 3] {
     let x = 2 * (oct & 0xff) as i32 - 255;
     let y = 2 * ((oct >> 8) & 0xff) as i32 - 255;
     let z = 255 - x.abs() - y.abs();
     let t = (-z).max(0);
-    // x, y odd: never 0, so each moves towards 0 by t.
+    // x, y odd: never 0, so each moves towards 0 by t (and the vector is never 0).
     let toward_zero = |v: i32| if v < 0 { v + t } else { v - t };
     let (x, y) = (toward_zero(x), toward_zero(y));
-    let byte = |v: i32| ((v >> 1) + 128) as u32;
+    // 16 |v| rounded down (256 |v|² < 2^26), at least 22.
+    let l = isqrt((x * x + y * y + z * z) as u32 * 256);
+    // round(127 · 16 |c| / l), at most 127: |c| ≤ |v| and 16 |v| < l + 1.
+    let byte = |c: i32| {
+        let q = (c.unsigned_abs() * (2 * 127 * 16) + l) / (2 * l);
+        if c < 0 {
+            128 - q
+        } else {
+            128 + q
+        }
+    };
     [byte(x), byte(y), byte(z)]
 }
 
-/// The normal vector of a word's bytes (`normal_bytes`), in whole numbers (−128..=127; exact
-/// on any runtime: `biased` and one exact subtraction, no conversions). The gather's normal
-/// test does not depend on the vector's length.
+/// The normal vector of a word's bytes (`normal_bytes`), in whole numbers (−127..=127, of
+/// length `NORMAL_LENGTH` within 0.9; exact on any runtime: `biased` and one exact
+/// subtraction, no conversions).
 #[inline(always)]
 fn word_normal(w: UVec4) -> [f32; 3] {
     const BIAS: f32 = TWO_23 + 128.0;
@@ -626,49 +642,63 @@ pub trait PhotonIndex {
     fn visit<V: CellVisitor>(&self, x: [f32; 3], r: f32, map: u32, sorted: &SortedPhotons, v: &mut V);
 }
 
-/// (B) A hashed uniform grid per map: cells of size 2r/(w − 1) for a window of w = 2 or 3
-/// cells per axis (`IndexParams::grid`: cells of 2r or r), so a disc of radius r overlaps at
-/// most w × w × w cells. Cells are grouped in blocks of w × w × w; a block is hashed to one of
-/// `blocks` slots (a power of two) and a cell's bucket is its block's slot times w³ plus its
-/// place in the block (coordinates modulo w). Any w consecutive cells along an axis differ
-/// modulo w, so the cells of one query never share a bucket: each is visited once, with no
-/// bookkeeping. Smaller cells (w = 3) visit about half the area (9r² against 16r²) in more,
-/// smaller cells; smaller still (windows of 4 and 5) tested fewer photons but ran 10–25 %
-/// slower (H200, `docs/gpu-runs/2026-12-03-gather-order-h200.md`), and 15–40 % slower with
-/// runs listed before the photon loop (H100, `docs/gpu-runs/2026-12-05-gather-runs-h100.md`).
-/// A block's cells are sorted together, as one segment (`sort::segment_offsets`: its offsets
-/// at `offset_slot`), so that each row of a window within a block is one run.
+/// (B) A hashed uniform grid per map, its cells `wx` × w × w to a query's window (`grid_windows`):
+/// across the rows (y and z) cells of 2r/(w − 1) for w = 2 or 3 (cells of 2r or r), along them
+/// (x) cells of 2r/(wx − 1), as fine or finer (wx = w, or 5 or 7 cells of r/2 or r/3 with
+/// w = 3), so a disc of radius r overlaps at most wx × w × w cells. Cells are grouped in
+/// blocks of wx × w × w; a block is hashed to one of `blocks` slots (a power of two) and a
+/// cell's bucket is its block's slot times wx·w² plus its place in the block (coordinates
+/// modulo wx, w and w). Any wx consecutive cells along x (w along y or z) differ modulo wx (w),
+/// so the cells of one query never share a bucket: each is visited once, with no bookkeeping.
+/// A block's cells are sorted together, as one segment (`sort::segment_offsets`: its offsets at
+/// `offset_slot`), so that each row of a window within a block is one run, however many cells
+/// long: finer cells along x cost no runs, and a row is clipped to the chord the query's
+/// sphere cuts from it (`visit`), so a row in the disc's plane tests the photons of about 2r
+/// of its length instead of 3r. The default, wx = 7 (cells of r/3 along x): at ~50 photons
+/// found a point, 21–29 % fewer photons tested than cubes of r (Cornell box 157.6 → 123.8,
+/// conference room 208.3 → 149.0) and the gather 5–20 % faster in tiles (H100,
+/// `docs/gpu-runs/2026-12-05-gather-rows-h100.md`); wx = 9 had fewer blocks for its cells and
+/// tested more. Finer cells across the rows (windows of 4 and 5 cells on every axis) tested
+/// fewer photons but ran 10–25 % slower (H200, `docs/gpu-runs/2026-12-03-gather-order-h200.md`),
+/// and 15–40 % slower with runs listed before the photon loop (H100,
+/// `docs/gpu-runs/2026-12-05-gather-runs-h100.md`): each row is a run.
 pub struct HashGrid {
     /// The scene box's minimum corner; cells are counted from one cell below it.
     pub origin: [f32; 3],
-    /// Buckets per map: `blocks` × w³.
+    /// Buckets per map: `blocks` × wx·w².
     pub cells: u32,
-    /// Cells per axis of a query's window (2 or 3).
-    pub window: u32,
+    /// Cells along x of a query's window (2, 3, 5 or 7).
+    pub wx: u32,
+    /// Cells along y and along z of a query's window (2 or 3).
+    pub w: u32,
     /// Hashed slots of blocks per map (a power of two).
     pub blocks: u32,
-    /// Cell size of the global and the caustic map.
-    pub cell_size: [f32; 2],
+    /// Per map (global, caustic): the cell size along x, and along y and z.
+    pub cell_size: [[f32; 2]; 2],
 }
 
-/// The window (cells per axis a query visits) of `IndexParams::grid`: 3, or 2 otherwise.
+/// The windows (cells along x, and along y and z, a query visits) of `IndexParams::grid`
+/// g: (2, 2) for g = 2; (g, 3) for g = 5 or 7; (3, 3) otherwise.
 #[inline(always)]
-pub fn grid_window(grid: u32) -> u32 {
-    if grid == 3 {
-        3
+pub fn grid_windows(grid: u32) -> [u32; 2] {
+    if grid == 2 {
+        [2, 2]
+    } else if grid == 5 || grid == 7 || grid == 9 {
+        [grid, 3]
     } else {
-        2
+        [3, 3]
     }
 }
 
 impl HashGrid {
-    /// The grid of `p`: origin `bounds_min`, `cells` buckets, cells of 2r/(w − 1) for each
-    /// map's radius r.
+    /// The grid of `p`: origin `bounds_min`, `cells` buckets, cells of 2r/(wx − 1) along x and
+    /// 2r/(w − 1) along y and z for each map's radius r.
     #[inline(always)]
     pub fn new(p: &IndexParams) -> HashGrid {
-        let w = grid_window(p.grid);
-        let k = 2.0 / (w - 1) as f32;
-        HashGrid { origin: p.bounds_min, cells: p.cells, window: w, blocks: p.cells / (w * w * w), cell_size: [k * p.radius[0], k * p.radius[1]] }
+        let [wx, w] = grid_windows(p.grid);
+        let (kx, k) = (2.0 / (wx - 1) as f32, 2.0 / (w - 1) as f32);
+        let size = |r: f32| [kx * r, k * r];
+        HashGrid { origin: p.bounds_min, cells: p.cells, wx, w, blocks: p.cells / (wx * w * w), cell_size: [size(p.radius[0]), size(p.radius[1])] }
     }
     #[inline(always)]
     fn coord(&self, x: f32, o: f32, inv: f32) -> u32 {
@@ -677,88 +707,103 @@ impl HashGrid {
     }
     #[inline(always)]
     fn bucket(&self, c: [u32; 3], map: u32) -> u32 {
-        let w = self.window;
-        let h = pcg_hash((c[0] / w) ^ pcg_hash((c[1] / w) ^ pcg_hash(c[2] / w)));
-        let place = c[0] % w + w * (c[1] % w + w * (c[2] % w));
-        (h & (self.blocks - 1)) * (w * w * w) + place + map * self.cells
+        let (wx, w) = (self.wx, self.w);
+        let h = pcg_hash((c[0] / wx) ^ pcg_hash((c[1] / w) ^ pcg_hash(c[2] / w)));
+        let place = c[0] % wx + wx * (c[1] % w + w * (c[2] % w));
+        (h & (self.blocks - 1)) * (wx * w * w) + place + map * self.cells
     }
 }
 
 impl PhotonIndex for HashGrid {
     #[inline(always)]
     fn cell(&self, p: [f32; 3], map: u32) -> u32 {
-        let inv = 1.0 / self.cell_size[map as usize];
+        let s = self.cell_size[map as usize];
+        let (ix, i) = (1.0 / s[0], 1.0 / s[1]);
         let o = self.origin;
-        self.bucket([self.coord(p[0], o[0], inv), self.coord(p[1], o[1], inv), self.coord(p[2], o[2], inv)], map)
+        self.bucket([self.coord(p[0], o[0], ix), self.coord(p[1], o[1], i), self.coord(p[2], o[2], i)], map)
     }
     #[inline(always)]
     fn visit<V: CellVisitor>(&self, x: [f32; 3], r: f32, map: u32, sorted: &SortedPhotons, v: &mut V) {
-        let inv = 1.0 / self.cell_size[map as usize];
+        let s = self.cell_size[map as usize];
+        let (ix, i, c) = (1.0 / s[0], 1.0 / s[1], s[1]);
         let o = self.origin;
-        let w = self.window;
-        let lo = [self.coord(x[0] - r, o[0], inv), self.coord(x[1] - r, o[1], inv), self.coord(x[2] - r, o[2], inv)];
-        // At most w cells per axis (the disc spans 2r, at most w − 1 cell sizes).
+        let (wx, w) = (self.wx, self.w);
+        let lo = [self.coord(x[0] - r, o[0], ix), self.coord(x[1] - r, o[1], i), self.coord(x[2] - r, o[2], i)];
+        // At most wx (w) cells along x (y, z): the disc spans 2r, wx − 1 (w − 1) cell sizes.
         let hi = [
-            self.coord(x[0] + r, o[0], inv).min(lo[0] + w - 1),
-            self.coord(x[1] + r, o[1], inv).min(lo[1] + w - 1),
-            self.coord(x[2] + r, o[2], inv).min(lo[2] + w - 1),
+            self.coord(x[0] + r, o[0], ix).min(lo[0] + wx - 1),
+            self.coord(x[1] + r, o[1], i).min(lo[1] + w - 1),
+            self.coord(x[2] + r, o[2], i).min(lo[2] + w - 1),
         ];
         // Along x, the cells of one block are consecutive buckets: a row of the window is one
         // run, or two where it crosses into the next block. The block hash is nested as in
-        // `bucket`.
-        // Offsets come by segments of a block's w³ cells (`offset_slot`), w³ + 1 entries each.
+        // `bucket`. Offsets come by segments of a block's wx·w² cells (`offset_slot`), one
+        // more entry each.
         let first_block = map * self.blocks;
-        let w3 = w * w * w;
-        let (qx0, mx0) = (lo[0] / w, lo[0] % w);
-        let n = hi[0] - lo[0] + 1;
-        let first_run = n.min(w - mx0);
-        // The row (y, z) and its block coordinates (c / w, c % w), stepped without divisions
-        // (w is a push constant: a division by it costs tens of instructions).
-        let (qy0, my0) = (lo[1] / w, lo[1] % w);
-        let (mut y, mut qy, mut my) = (lo[1], qy0, my0);
-        let (mut z, mut qz, mut mz) = (lo[2], lo[2] / w, lo[2] % w);
-        let mut second = false;
+        let seg = wx * w * w;
+        let (qx0, mx0) = (lo[0] / wx, lo[0] % wx);
+        // Each row (y, z) is clipped to the sphere: at distance d from x its rectangle across
+        // y and z holds photons within r only along the chord x ± √(r² − d²), and none where
+        // d > r. Widened so that no photon a `Disc::test` counts is lost to rounding: the
+        // radius by a relative 10^-5 (the test's own rounding is below 10^-6), distances and
+        // the half chord by `eps`, far above the rounding of coordinates of magnitude `m` (the
+        // cells' bounds, `coord`'s products) and of a GPU's square root.
+        let m = x[0].abs().max(x[1].abs()).max(x[2].abs()) + o[0].abs().max(o[1].abs()).max(o[2].abs()) + r;
+        let eps = 1e-6 * m;
+        let r2 = r * r * (1.0 + 1e-5);
+        // The window's first row along y and along z (`RowAxis`).
+        let axis = |a: usize| RowAxis { k: lo[a], q: lo[a] / w, m: lo[a] % w, lo: fma(lo[a] as f32 - 1.0, c, o[a]) };
+        let (y0, mut z) = (axis(1), axis(2));
+        // A row's distance from x along y or z, less `eps`, at least 0.
+        let dist = |a: &RowAxis, x: f32| ((a.lo - x).max(x - (a.lo + c)) - eps).max(0.0);
         // First every run's photons (`sorted.run`), in visiting order, the empty ones left
-        // out; then one loop over their photons, in the same order as before. Computing a run
-        // (hashes, offsets) inside the photon loop made a subgroup take that step at nearly
-        // every photon step (its lanes reach the ends of their runs at different steps, and
-        // an empty row, most of a window around a floor's point, cost a step): the gather at
-        // ~50 photons a point took 15–25 % longer on the H100 (2026-12-05). Not initialised
-        // (a store per entry otherwise, 2–4 %): entries below `count` are written before they
-        // are read.
+        // out; then one loop over their photons. Computing a run (hashes, offsets) inside the
+        // photon loop made a subgroup take that step at nearly every photon step (its lanes
+        // reach the ends of their runs at different steps, and an empty row, most of a window
+        // around a floor's point, cost a step): the gather at ~50 photons a point took 15–25 %
+        // longer on the H100 (2026-12-05). Not initialised (a store per entry otherwise,
+        // 2–4 %): entries below `count` are written before they are read.
         let mut runs = [MaybeUninit::<[u32; 2]>::uninit(); MAX_RUNS];
         let mut count = 0usize;
-        while z <= hi[2] {
-            let hy = pcg_hash(qy ^ pcg_hash(qz));
-            let place = w * (my + w * mz);
-            let (block, o, len) = if second { (pcg_hash((qx0 + 1) ^ hy), 0, n - first_run) } else { (pcg_hash(qx0 ^ hy), mx0, first_run) };
-            let s = ((block & (self.blocks - 1)) + first_block) * (w3 + 1) + place + o;
-            let (j, b) = sorted.run(s, s + len);
-            // Stored whatever it holds, kept (counted) only if it holds photons. At most
-            // MAX_RUNS runs: w ≤ 3 rows per axis, two runs a row.
-            runs[count.min(MAX_RUNS - 1)] = MaybeUninit::new([j, b]);
-            count += (j < b) as usize;
-            // The next run: this row's second part, or the next row.
-            if !second && first_run < n {
-                second = true;
-            } else {
-                second = false;
-                y += 1;
-                my += 1;
-                if my == w {
-                    my = 0;
-                    qy += 1;
-                }
-                if y > hi[1] {
-                    (y, qy, my) = (lo[1], qy0, my0);
-                    z += 1;
-                    mz += 1;
-                    if mz == w {
-                        mz = 0;
-                        qz += 1;
+        while z.k <= hi[2] {
+            let dz = dist(&z, x[2]);
+            let mut y = y0;
+            while y.k <= hi[1] {
+                let dy = dist(&y, x[1]);
+                let h2 = r2 - dy * dy - dz * dz;
+                if h2 >= 0.0 {
+                    let h = sqrt(h2) + eps;
+                    // The chord's cells, within the window (so a ≤ b: both hold x's cell).
+                    let a = self.coord(x[0] - h, o[0], ix).max(lo[0]);
+                    let b = self.coord(x[0] + h, o[0], ix).min(hi[0]);
+                    // a's block and place along x, from lo's: a − lo[0] < wx.
+                    let mut ma = mx0 + (a - lo[0]);
+                    let mut qa = qx0;
+                    if ma >= wx {
+                        ma -= wx;
+                        qa += 1;
+                    }
+                    let n = b + 1 - a.min(b);
+                    let first = n.min(wx - ma);
+                    let hy = pcg_hash(y.q ^ pcg_hash(z.q));
+                    let place = wx * (y.m + w * z.m);
+                    let slot = |q: u32| ((pcg_hash(q ^ hy) & (self.blocks - 1)) + first_block) * (seg + 1) + place;
+                    // Stored whatever they hold, kept (counted) only if they hold photons. At
+                    // most MAX_RUNS runs: w ≤ 3 rows per axis, two runs a row.
+                    let s0 = slot(qa) + ma;
+                    let (j, e) = sorted.run(s0, s0 + first);
+                    runs[count.min(MAX_RUNS - 1)] = MaybeUninit::new([j, e]);
+                    count += (j < e) as usize;
+                    if first < n {
+                        let s1 = slot(qa + 1);
+                        let (j, e) = sorted.run(s1, s1 + n - first);
+                        runs[count.min(MAX_RUNS - 1)] = MaybeUninit::new([j, e]);
+                        count += (j < e) as usize;
                     }
                 }
+                y.step(w, c);
             }
+            z.step(w, c);
         }
         // One loop over the photons of every run (a run's photons, or the next run): the
         // lanes of a subgroup step through photons together even where their runs differ in
@@ -790,8 +835,35 @@ impl PhotonIndex for HashGrid {
     }
 }
 
-/// Most runs of photons a grid query visits: windows of at most three cells per axis
-/// (`grid_window`), each row of a window one run or two (where it crosses into the next block).
+/// A coordinate of a grid query's rows (y or z): the cell `k`, its block `q` = k / w and place
+/// `m` = k % w in the block, and the cell's lower bound `lo` (cell k spans
+/// [o + (k − 1)·c, o + k·c) for the grid's origin o and cell size c), stepped from one row to
+/// the next without divisions (w is a push constant: a division by it costs tens of
+/// instructions).
+#[derive(Copy, Clone)]
+struct RowAxis {
+    k: u32,
+    q: u32,
+    m: u32,
+    lo: f32,
+}
+
+impl RowAxis {
+    /// The next row's: a cell further, into the next block after w places.
+    #[inline(always)]
+    fn step(&mut self, w: u32, c: f32) {
+        self.k += 1;
+        self.lo += c;
+        self.m += 1;
+        if self.m == w {
+            self.m = 0;
+            self.q += 1;
+        }
+    }
+}
+
+/// Most runs of photons a grid query visits: windows of at most three cells along y and z
+/// (`grid_windows`), each row of a window one run or two (where it crosses into the next block).
 const MAX_RUNS: usize = 2 * 3 * 3;
 
 /// (A) The paper's index: the geometry kd-tree's leaves, each subdivided into a grid of cells
@@ -921,8 +993,8 @@ pub fn keys<I: PhotonIndex, K: Store<u32> + ?Sized, C: AtomicStore + ?Sized, S: 
 /// hashed grid (`sort::segment_offsets`), exact for the kd index.
 #[inline(always)]
 pub fn sort_params(p: &IndexParams) -> SortParams {
-    let w = grid_window(p.grid);
-    SortParams { count: p.count, cells: p.cells * p.maps, segment: if p.kind == INDEX_KD { 0 } else { w * w * w }, _pad: 0 }
+    let [wx, w] = grid_windows(p.grid);
+    SortParams { count: p.count, cells: p.cells * p.maps, segment: if p.kind == INDEX_KD { 0 } else { wx * w * w }, _pad: 0 }
 }
 
 /// Where the offset of cell `cell` is: the hashed grid's offsets come by segments of a block's
@@ -993,30 +1065,38 @@ impl Disc {
     }
 
     /// Whether the photon of word `w` counts: within the radius, its surface's normal within 60°
-    /// of `n` (photons on the back side or of another orientation never count), not `PADDING`.
-    /// Also its distance² (the filters' argument).
+    /// of `n` (photons on the back side or of another orientation never count; `facing`), not
+    /// `PADDING`. Also its distance² (the filters' argument).
     #[inline(always)]
     pub fn test(&self, w: UVec4) -> (bool, f32) {
         let d = self.frame.offset(w, self.base);
         let d2 = dot3(d, d);
-        // cos > 0.5 for the photon's normal m, not normalised (`word_normal`): c = m·n > 0 and
-        // 4c² > |m|² (no square root or division: this test runs for every photon visited). No
-        // branches: a subgroup's lanes pay for every side of one.
-        let m = word_normal(w);
-        let c = dot3(m, self.n);
-        ((d2 <= self.r2) & (c > 0.0) & (4.0 * c * c > dot3(m, m)) & (w.z < PADDING_BIT), d2)
+        // No branches: a subgroup's lanes pay for every side of one.
+        ((d2 <= self.r2) & facing(w, self.n) & (w.z < PADDING_BIT), d2)
     }
 }
 
-/// Sums the photons of visited cells within a disc.
-struct Sum {
+/// Whether the normal of word `w` lies within 60° of the unit vector `n`: m · n > 127/2 for
+/// its vector m (`word_normal`, of length 127 within 0.9: cos > 0.5 within 0.7 %, 0.4° at
+/// 60°). One dot product against a fixed bound, no square root or division: the test runs for
+/// every photon a gather visits. Against m's own length instead (4 (m·n)² > |m|², m·n > 0),
+/// with a test of the filter at every photon too, the gather took 12–19 % longer (H100,
+/// 2026-12-05; the filter's test alone 8–13 %: `irradiance`).
+#[inline(always)]
+pub fn facing(w: UVec4, n: [f32; 3]) -> bool {
+    dot3(word_normal(w), n) > 0.5 * NORMAL_LENGTH
+}
+
+/// Sums the photons of visited cells within a disc, weighted by the filter (`FILTER_*`;
+/// `CONSTANT`: the constant filter, weight 1, without a test of `filter` at every photon).
+struct Sum<const CONSTANT: bool> {
     disc: Disc,
     filter: u32,
     sum: [f32; 3],
     found: u32,
 }
 
-impl CellVisitor for Sum {
+impl<const CONSTANT: bool> CellVisitor for Sum<CONSTANT> {
     /// One 16-byte word a photon: its place, normal and power.
     #[inline(always)]
     fn word(&mut self, w: UVec4, _j: u32, _sorted: &SortedPhotons) {
@@ -1032,7 +1112,9 @@ impl CellVisitor for Sum {
             return;
         }
         let r2 = self.disc.r2;
-        let k = if self.filter == FILTER_CONE {
+        let k = if CONSTANT {
+            1.0
+        } else if self.filter == FILTER_CONE {
             3.0 * (1.0 - sqrt(d2 / r2))
         } else if self.filter == FILTER_EPANECHNIKOV {
             2.0 * (1.0 - d2 / r2)
@@ -1044,7 +1126,10 @@ impl CellVisitor for Sum {
         // the disc). Keep the multiplication by k between that multiply-add and the sum's add:
         // with k folded into the power of two instead, lavapipe summed differently in two
         // builds of the kernel (an add moved into the multiply-add, where −2^23 · 2^(e − 24)
-        // swamps the sum; docs/gpu-runs/2026-12-04-photon-words-h200.md).
+        // swamps the sum; docs/gpu-runs/2026-12-04-photon-words-h200.md). Zeroing the power of
+        // two instead of the weight, with the mantissas made exact floats first (an operation
+        // fewer a channel), was not faster (H100, 2026-12-05: measured together with the
+        // chord's cells from x's place in cells, 0–4 % slower).
         let v = w.w;
         let s = exp2i((v >> 27) as i32 - 24);
         let c = -TWO_23 * s;
@@ -1068,9 +1153,19 @@ pub struct Estimate {
 #[inline(always)]
 pub fn irradiance<I: PhotonIndex>(index: &I, p: &IndexParams, sorted: &SortedPhotons, x: [f32; 3], n: [f32; 3], map: u32) -> Estimate {
     let r = p.radius[map as usize];
-    let mut s = Sum { disc: Disc::new(p, x, n, r), filter: p.filter, sum: [0.0; 3], found: 0 };
-    index.visit(x, r, map, sorted, &mut s);
-    Estimate { irradiance: scale3(s.sum, 1.0 / (core::f32::consts::PI * r * r)), found: s.found }
+    let disc = Disc::new(p, x, n, r);
+    // The constant filter (the default) in a loop of its own: a test of the filter at every
+    // photon cost 8–13 % of the gather (H100, 2026-12-05).
+    let (sum, found) = if p.filter == FILTER_CONSTANT {
+        let mut s = Sum::<true> { disc, filter: p.filter, sum: [0.0; 3], found: 0 };
+        index.visit(x, r, map, sorted, &mut s);
+        (s.sum, s.found)
+    } else {
+        let mut s = Sum::<false> { disc, filter: p.filter, sum: [0.0; 3], found: 0 };
+        index.visit(x, r, map, sorted, &mut s);
+        (s.sum, s.found)
+    };
+    Estimate { irradiance: scale3(sum, 1.0 / (core::f32::consts::PI * r * r)), found }
 }
 
 /// Path `i` (or, under `GATHER_LISTED`, the `i`-th path listed in `points`): if it ended at a

@@ -41,10 +41,10 @@ use std::collections::VecDeque;
 use std::time::Instant;
 
 /// Which photon index: the paper's kd-tree leaves subdivided to about the radius, or a hashed
-/// uniform grid of cells of r or 2r (`PhotonOptions::grid_window`).
+/// uniform grid of cells of about r or 2r (`PhotonOptions::grid_window`).
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub enum IndexKind {
-    /// Hashed uniform grid of cells of r or 2r.
+    /// Hashed uniform grid of cells of about r or 2r.
     Grid,
     /// The geometry kd-tree's leaves, each split into cells of about 2r (needs the tree).
     Kd,
@@ -111,8 +111,9 @@ pub struct PhotonOptions {
     pub alpha: f32,
     /// Which photon index the passes build.
     pub index: IndexKind,
-    /// The hashed grid's cells per axis that a gather visits: 3 (cells of size r) or 2
-    /// (cells of 2r); see `kdray_shared::photon::HashGrid`.
+    /// The hashed grid's cells along x that a gather visits: 3 (cells of size r), 2 (cells
+    /// of 2r), or 5 or 7 (cells of r across x, of r/2 or r/3 along it; rows along x clipped
+    /// to the query's sphere); see `kdray_shared::photon::HashGrid`.
     pub grid_window: u32,
     /// 0: independent photons; otherwise groups of 32 with lattice offsets of this spread
     /// (`COHERENT_SPREAD` by default).
@@ -174,7 +175,7 @@ impl Default for PhotonOptions {
             caustic_radius: 0.5,
             alpha: 2.0 / 3.0,
             index: IndexKind::Grid,
-            grid_window: 3,
+            grid_window: 7,
             spread: COHERENT_SPREAD,
             photon_direct: false,
             final_gather: FinalGather::Edges,
@@ -339,8 +340,8 @@ impl<'t> PhotonMap<'t> {
         if o.final_gather == FinalGather::Edges && !(1..=8).contains(&o.edge_levels) {
             bail!(InvalidInput: "the final gather's levels must be between 1 and 8, got {}", o.edge_levels);
         }
-        if !(o.grid_window == 2 || o.grid_window == 3) {
-            bail!(InvalidInput: "the photon grid's window must be 2 or 3 cells, got {}", o.grid_window);
+        if ![2, 3, 5, 7, 9].contains(&o.grid_window) {
+            bail!(InvalidInput: "the photon grid's window must be 2, 3, 5, 7 or 9 cells, got {}", o.grid_window);
         }
         if let Some(r) = o.radius {
             if !(r.is_finite() && r > 0.0) {
@@ -402,15 +403,16 @@ impl<'t> PhotonMap<'t> {
         })
     }
 
-    /// Cells per map: the grid's buckets (a power of two of blocks of window³ cells, about
-    /// the photon count), or the kd index's budget: twice the photons, and at least a cell per
+    /// Cells per map: the grid's buckets (a power of two of blocks of wx·w² cells,
+    /// `grid_windows`, about the photon count), or the kd index's budget: twice the photons, and at least a cell per
     /// leaf of the tree (`leaves`; `leaf_cells` gives every leaf one at the least, so with
     /// fewer cells than leaves the leaves' cells would run past the offsets).
     fn cells_for(kind: IndexKind, capacity: u32, window: u32, leaves: u32) -> Result<u32> {
         Ok(match kind {
             IndexKind::Grid => {
-                let w3 = window * window * window;
-                capacity.div_ceil(w3).next_power_of_two().min(1 << 25) * w3
+                let [wx, w] = kdray_shared::photon::grid_windows(window);
+                let block = wx * w * w;
+                capacity.div_ceil(block).next_power_of_two().min(1 << 25) * block
             }
             IndexKind::Kd => {
                 const MAX: u32 = 1 << 30;
@@ -429,7 +431,7 @@ impl<'t> PhotonMap<'t> {
     }
 
     /// The index's counting sort, as the kernels expect it (`photon::sort_params`: by segments
-    /// of a grid block's window³ cells, each row of a gather's window within a block then one
+    /// of a grid block's wx·w² cells, each row of a gather's window within a block then one
     /// run; exact offsets for the kd index).
     fn sort_for(rt: &'t dyn Runtime, kind: IndexKind, window: u32, cells: u32, maps: u32, capacity: u32) -> Result<CountingSort<'t>> {
         let keys = cells.checked_mul(maps).ok_or_else(|| err!(TooLarge: "too many photon cells"))?;

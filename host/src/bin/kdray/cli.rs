@@ -339,9 +339,10 @@ pub enum Command {
         /// Gather kernel (photon).
         #[arg(long, value_enum, default_value = "constant")]
         filter: FilterArg,
-        /// The hashed photon grid's cells per axis a gather visits (photon): 3 (cells of the
-        /// radius) or 2 (cells of twice the radius).
-        #[arg(long, default_value_t = 3)]
+        /// The hashed photon grid's cells along x a gather visits (photon): 3 (cells of the
+        /// radius), 2 (cells of twice the radius), or 5 or 7 (cells of the radius across x, of
+        /// a half or a third of it along x).
+        #[arg(long, default_value_t = 7)]
         grid_window: u32,
         /// A pass per bounce and query (camera or emission, then closest-hit query, shading,
         /// shadow query per bounce: the wavefront schedule) instead of whole photon and eye
