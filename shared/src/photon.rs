@@ -309,8 +309,8 @@ pub const NORMAL_LENGTH: f32 = 127.0;
 /// (× 16), each component scaled by 127 over it in a rounded division. Each component is off
 /// by at most 1/2 (and the length by 1/16 of a unit), so the direction is within 0.4° of the
 /// code's and the length within 0.9 of 127: the gather reads a vector without the octahedral
-/// fold (`word_normal`) and tests it by one dot product against a fixed bound (`Disc::test`),
-/// not against its length.
+/// fold (`word_normal`) and tests it by one dot product against a fixed bound (`facing`), not
+/// against its length.
 #[inline(always)]
 pub fn normal_bytes(oct: u32) -> [u32; 3] {
     let x = 2 * (oct & 0xff) as i32 - 255;
@@ -644,8 +644,8 @@ pub trait PhotonIndex {
 
 /// (B) A hashed uniform grid per map, its cells `wx` × w × w to a query's window (`grid_windows`):
 /// across the rows (y and z) cells of 2r/(w − 1) for w = 2 or 3 (cells of 2r or r), along them
-/// (x) cells of 2r/(wx − 1), as fine or finer (wx = w, or 5 or 7 cells of r/2 or r/3 with
-/// w = 3), so a disc of radius r overlaps at most wx × w × w cells. Cells are grouped in
+/// (x) cells of 2r/(wx − 1), as fine or finer (wx = w, or 5, 7 or 9 cells of r/2, r/3 or r/4
+/// with w = 3), so a disc of radius r overlaps at most wx × w × w cells. Cells are grouped in
 /// blocks of wx × w × w; a block is hashed to one of `blocks` slots (a power of two) and a
 /// cell's bucket is its block's slot times wx·w² plus its place in the block (coordinates
 /// modulo wx, w and w). Any wx consecutive cells along x (w along y or z) differ modulo wx (w),
@@ -667,7 +667,7 @@ pub struct HashGrid {
     pub origin: [f32; 3],
     /// Buckets per map: `blocks` × wx·w².
     pub cells: u32,
-    /// Cells along x of a query's window (2, 3, 5 or 7).
+    /// Cells along x of a query's window (2, 3, 5, 7 or 9).
     pub wx: u32,
     /// Cells along y and along z of a query's window (2 or 3).
     pub w: u32,
@@ -678,7 +678,7 @@ pub struct HashGrid {
 }
 
 /// The windows (cells along x, and along y and z, a query visits) of `IndexParams::grid`
-/// g: (2, 2) for g = 2; (g, 3) for g = 5 or 7; (3, 3) otherwise.
+/// g: (2, 2) for g = 2; (g, 3) for g = 5, 7 or 9; (3, 3) otherwise.
 #[inline(always)]
 pub fn grid_windows(grid: u32) -> [u32; 2] {
     if grid == 2 {
@@ -1077,7 +1077,7 @@ impl Disc {
 }
 
 /// Whether the normal of word `w` lies within 60° of the unit vector `n`: m · n > 127/2 for
-/// its vector m (`word_normal`, of length 127 within 0.9: cos > 0.5 within 0.7 %, 0.4° at
+/// its vector m (`word_normal`, of length 127 within 0.9: cos > 0.5 within 0.7 %, 0.25° at
 /// 60°). One dot product against a fixed bound, no square root or division: the test runs for
 /// every photon a gather visits. Against m's own length instead (4 (m·n)² > |m|², m·n > 0),
 /// with a test of the filter at every photon too, the gather took 12–19 % longer (H100,

@@ -464,7 +464,8 @@ pub struct IndexParams {
     /// `FILTER_*`.
     pub filter: u32,
     /// The hashed grid's window (`photon::HashGrid`, `photon::grid_windows`): 3 (cells of size
-    /// r), 2 (cells of 2r), or 5 or 7 (cells of r across the rows, r/2 or r/3 along them).
+    /// r), 2 (cells of 2r), or 5, 7 or 9 (cells of r across the rows, r/2, r/3 or r/4 along
+    /// them).
     pub grid: u32,
     /// The scene box (the grid's origin, the kd-tree's root cell).
     pub bounds_min: [f32; 3],

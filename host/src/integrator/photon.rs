@@ -112,8 +112,8 @@ pub struct PhotonOptions {
     /// Which photon index the passes build.
     pub index: IndexKind,
     /// The hashed grid's cells along x that a gather visits: 3 (cells of size r), 2 (cells
-    /// of 2r), or 5 or 7 (cells of r across x, of r/2 or r/3 along it; rows along x clipped
-    /// to the query's sphere); see `kdray_shared::photon::HashGrid`.
+    /// of 2r), or 5, 7 (the default) or 9 (cells of r across x, of r/2, r/3 or r/4 along it);
+    /// rows along x clipped to the query's sphere; see `kdray_shared::photon::HashGrid`.
     pub grid_window: u32,
     /// 0: independent photons; otherwise groups of 32 with lattice offsets of this spread
     /// (`COHERENT_SPREAD` by default).

@@ -340,8 +340,8 @@ pub enum Command {
         #[arg(long, value_enum, default_value = "constant")]
         filter: FilterArg,
         /// The hashed photon grid's cells along x a gather visits (photon): 3 (cells of the
-        /// radius), 2 (cells of twice the radius), or 5 or 7 (cells of the radius across x, of
-        /// a half or a third of it along x).
+        /// radius), 2 (cells of twice the radius), or 5, 7 or 9 (cells of the radius across x,
+        /// of a half, a third or a quarter of it along x).
         #[arg(long, default_value_t = 7)]
         grid_window: u32,
         /// A pass per bounce and query (camera or emission, then closest-hit query, shading,
