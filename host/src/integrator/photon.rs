@@ -404,9 +404,10 @@ impl<'t> PhotonMap<'t> {
     }
 
     /// Cells per map: the grid's buckets (a power of two of blocks of wx·w² cells,
-    /// `grid_windows`, about the photon count), or the kd index's budget: twice the photons, and at least a cell per
-    /// leaf of the tree (`leaves`; `leaf_cells` gives every leaf one at the least, so with
-    /// fewer cells than leaves the leaves' cells would run past the offsets).
+    /// `grid_windows`, about the photon count), or the kd index's budget: twice the photons,
+    /// and at least a cell per leaf of the tree (`leaves`; `leaf_cells` gives every leaf one at
+    /// the least, so with fewer cells than leaves the leaves' cells would run past the
+    /// offsets).
     fn cells_for(kind: IndexKind, capacity: u32, window: u32, leaves: u32) -> Result<u32> {
         Ok(match kind {
             IndexKind::Grid => {
