@@ -677,8 +677,11 @@ pub struct HashGrid {
     pub cell_size: [[f32; 2]; 2],
 }
 
+/// The values of `IndexParams::grid` (a grid's cells along x a query visits: `grid_windows`).
+pub const GRID_WINDOWS: [u32; 5] = [2, 3, 5, 7, 9];
+
 /// The windows (cells along x, and along y and z, a query visits) of `IndexParams::grid`
-/// g: (2, 2) for g = 2; (g, 3) for g = 5, 7 or 9; (3, 3) otherwise.
+/// g (one of `GRID_WINDOWS`): (2, 2) for g = 2; (g, 3) for g = 5, 7 or 9; (3, 3) otherwise.
 #[inline(always)]
 pub fn grid_windows(grid: u32) -> [u32; 2] {
     if grid == 2 {

@@ -340,8 +340,8 @@ impl<'t> PhotonMap<'t> {
         if o.final_gather == FinalGather::Edges && !(1..=8).contains(&o.edge_levels) {
             bail!(InvalidInput: "the final gather's levels must be between 1 and 8, got {}", o.edge_levels);
         }
-        if ![2, 3, 5, 7, 9].contains(&o.grid_window) {
-            bail!(InvalidInput: "the photon grid's window must be 2, 3, 5, 7 or 9 cells, got {}", o.grid_window);
+        if !kdray_shared::photon::GRID_WINDOWS.contains(&o.grid_window) {
+            bail!(InvalidInput: "the photon grid's window must be one of {:?} cells, got {}", kdray_shared::photon::GRID_WINDOWS, o.grid_window);
         }
         if let Some(r) = o.radius {
             if !(r.is_finite() && r > 0.0) {
