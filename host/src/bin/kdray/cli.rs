@@ -444,6 +444,9 @@ pub enum Command {
         /// bvh, stack, restart, pushdown, shortstack:3, restart+packets, …
         #[arg(long)]
         method: Vec<String>,
+        /// photons: threads of the whole-path photon kernel (as `render --photon-threads`).
+        #[arg(long, default_value_t = pm::PHOTON_THREADS)]
+        photon_threads: u32,
         #[command(flatten)]
         build: BuildArgs,
     },
@@ -526,7 +529,7 @@ pub fn run(cli: Cli) -> Result<()> {
             }
             Ok(())
         }
-        Command::Bench { suite, scene: scenes, device, devices, size, reps, out, dump_rays, peer, max_chairs, method, build } => {
+        Command::Bench { suite, scene: scenes, device, devices, size, reps, out, dump_rays, peer, max_chairs, method, photon_threads, build } => {
             if size == 0 || size > 4096 || reps == 0 {
                 bail!("--size must be 1..=4096 and --reps at least 1");
             }
@@ -562,6 +565,7 @@ pub fn run(cli: Cli) -> Result<()> {
                 peer,
                 max_chairs,
                 methods: (!method.is_empty()).then_some(method),
+                photon_threads,
                 progress: progress("bench"),
             };
             let start = Instant::now();

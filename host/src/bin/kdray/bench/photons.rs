@@ -113,7 +113,7 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
         let speed_only = std::env::var("KDRAY_PHOTONS_SPEED_ONLY").is_ok_and(|v| v == "1");
         // Speed: one pass of `photons` photons, both indices.
         let mut row = vec![scene.name.clone(), scene.triangles.len().to_string(), photons.to_string()];
-        let base = PhotonOptions { photons, passes: 1, final_gather: FinalGather::Off, ..Default::default() };
+        let base = PhotonOptions { photons, passes: 1, final_gather: FinalGather::Off, photon_threads: o.photon_threads, ..Default::default() };
         let split = PhotonMap::new(&t, accel, Some(tree), &scene, PhotonOptions { fused: false, ..base.clone() })?;
         let (rays, bounces) = split.count_bounces(0)?;
         let split_ms = time_recorded(rt, copies, &|c| split.record_trace(c, 0))?;

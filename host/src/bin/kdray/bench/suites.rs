@@ -34,6 +34,8 @@ pub struct Options<'g> {
     pub max_chairs: u32,
     /// Only these methods' rows in `horn` (by `Accel::name`).
     pub methods: Option<Vec<String>>,
+    /// `photons`: threads of the whole-path photon kernel (`PhotonOptions::photon_threads`).
+    pub photon_threads: u32,
     pub progress: ProgressBar,
 }
 
