@@ -181,7 +181,7 @@ fn check_index(map: &PhotonMap, tree: &KdTreeData, records: &[Photon], what: &st
     let kd;
     let grid = HashGrid::new(&p);
     let index: &dyn Fn([f32; 3], u32) -> u32 = if p.kind == INDEX_KD {
-        kd = KdCells { nodes: &tree.nodes, leaves: table.as_deref().unwrap(), cells: p.cells };
+        kd = KdCells::new(&p, &tree.nodes, table.as_deref().unwrap());
         &|x, m| kd.cell(x, m)
     } else {
         &|x, m| grid.cell(x, m)
@@ -201,7 +201,7 @@ fn check_index(map: &PhotonMap, tree: &KdTreeData, records: &[Photon], what: &st
     // Gathers at photon positions (offset) against brute force.
     let gather = |x: [f32; 3], n: [f32; 3], m: u32| -> kdray_shared::photon::Estimate {
         if p.kind == INDEX_KD {
-            let kd = KdCells { nodes: &tree.nodes, leaves: table.as_deref().unwrap(), cells: p.cells };
+            let kd = KdCells::new(&p, &tree.nodes, table.as_deref().unwrap());
             irradiance(&kd, &p, &view, x, n, m)
         } else {
             irradiance(&grid, &p, &view, x, n, m)
@@ -256,6 +256,145 @@ fn check_index(map: &PhotonMap, tree: &KdTreeData, records: &[Photon], what: &st
         nonempty += (count > 0) as usize;
     }
     assert!(nonempty > 300, "{what}: only {nonempty} gathers found photons");
+}
+
+/// Photon words sorted by cell as the index's sort leaves them (`cell_range` reads them back).
+fn hand_index<I: PhotonIndex>(p: &kdray_shared::IndexParams, index: &I, words: &[PhotonWord]) -> (Vec<PhotonWord>, Vec<u32>) {
+    let frame = WordFrame::new(p);
+    let mut placed: Vec<(u32, PhotonWord)> = words.iter().map(|w| (index.cell(frame.position(w.word), 0), *w)).collect();
+    placed.sort_by_key(|c| c.0);
+    let slot = |c: u32| kdray_shared::photon::offset_slot(p, c) as usize;
+    let mut offsets = vec![0u32; slot(p.cells - 1) + 2];
+    let mut j = 0;
+    for c in 0..p.cells {
+        offsets[slot(c)] = j as u32;
+        while j < placed.len() && placed[j].0 == c {
+            j += 1;
+        }
+        offsets[slot(c) + 1] = j as u32;
+    }
+    assert_eq!(j, placed.len(), "a photon outside every cell");
+    (placed.into_iter().map(|c| c.1).collect(), offsets)
+}
+
+/// The smallest `f32` in (a, b] for which `f` holds, where `f(a)` does not and `f(b)` does
+/// (a < b; bisection over the floats in order).
+fn first_where(a: f32, b: f32, f: impl Fn(f32) -> bool) -> f32 {
+    // The floats' order as unsigned integers, and back.
+    let key = |x: f32| if x.to_bits() >> 31 == 1 { !x.to_bits() } else { x.to_bits() | 1 << 31 };
+    let from = |k: u32| f32::from_bits(if k >> 31 == 1 { k & !(1 << 31) } else { !k });
+    let (mut lo, mut hi) = (key(a), key(b));
+    assert!(lo < hi && !f(a) && f(b), "first_where({a}, {b}): {} {} {}", lo < hi, f(a), f(b));
+    while hi - lo > 1 {
+        let mid = lo + (hi - lo) / 2;
+        if f(from(mid)) {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    from(hi)
+}
+
+/// Gathers at radii of a few photon-word steps (10^-7 to 10^-5 of the scene box), where the
+/// distance test's own rounding (its offsets are decoded against origin − x, rounded to about a
+/// step) is as large as the radius: every index finds exactly the photons brute force counts
+/// (`Disc::test` on every word), never one twice, at points a radius past a cell boundary with
+/// photons just behind it (along an axis) and with photons all around at the radius; and a
+/// gather at a point at infinity or NaN finds none (no panic, no endless loop).
+#[test]
+fn gathers_find_what_brute_force_counts_at_radii_of_a_few_word_steps() {
+    let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+    let mut rand = move || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed >> 40) as f32 / (1u64 << 24) as f32
+    };
+    let n = [0.0, 0.0, 1.0];
+    let mut accepted_behind = 0;
+    for (min, max) in [([0.0f32; 3], [1000.0f32; 3]), ([1.5e5, 1e3, -2.2e5], [1.5e5 + 20.0, 1e3 + 20.0, -2.2e5 + 20.0]), ([-3.0, -1.0, -2.0], [4.0, 2.5, 1.0])] {
+        for grid in [0, 2, 3, 5, 7, 9] {
+            let base = kdray_shared::IndexParams { maps: 1, filter: kdray_shared::FILTER_CONSTANT, bounds_min: min, bounds_max: max, ..Default::default() };
+            let frame = WordFrame::new(&base);
+            let step = frame.step[0].max(frame.step[1]).max(frame.step[2]);
+            for r in [1.5 * step, 4.0 * step, 40.0 * step] {
+                let p = if grid == 0 {
+                    let d = 37u32;
+                    kdray_shared::IndexParams { kind: INDEX_KD, cells: d * d * d, radius: [r, r], ..base }
+                } else {
+                    let [wx, w] = kdray_shared::photon::grid_windows(grid);
+                    kdray_shared::IndexParams { kind: kdray_shared::INDEX_GRID, grid, cells: 64 * wx * w * w, radius: [r, r], ..base }
+                };
+                let nodes = [kdray_shared::kdtree::KdNode::leaf(0, 0)];
+                let leaves = [kdray_shared::LeafCells { lo: min, base: 0, hi: max, dims: 37 | 37 << 10 | 37 << 20 }];
+                let (kd, hash) = (KdCells::new(&p, &nodes, &leaves), HashGrid::new(&p));
+                let cell = |x: [f32; 3]| if grid == 0 { kd.cell(x, 0) } else { hash.cell(x, 0) };
+                let word = |x: [f32; 3]| PhotonWord::of(&Photon::new(x, [1.0; 3], [0.0, 0.0, 1.0], [0.0, 0.0, -1.0], false, false, 0.5), &frame);
+                for trial in 0..60 {
+                    let a = trial % 3;
+                    let c: [f32; 3] = std::array::from_fn(|k| min[k] + (0.2 + 0.6 * rand()) * (max[k] - min[k]));
+                    // Points a radius (and up to three steps) past a cell boundary b along axis
+                    // a, photons on the words' steps just behind it.
+                    // The first change of cell along a, stepping a quarter of a cell (so the
+                    // next cell's), then its boundary.
+                    let size = if grid == 0 { (max[a] - min[a]) / 37.0 } else { hash.cell_size[0][a.min(1)] };
+                    let at = |t: f32| {
+                        let mut y = c;
+                        y[a] = t;
+                        y
+                    };
+                    let (mut near, mut far) = (c[a], c);
+                    while cell(far) == cell(c) {
+                        near = far[a];
+                        // (At least a float further: a cell may be a few ulps wide.)
+                        far[a] = (far[a] + 0.25 * size).max(far[a].next_up());
+                        assert!(far[a] - c[a] < 2.0 * size, "grid {grid} axis {a} r {r}: no cell boundary within {size} of {c:?} ({:?})", hash.cell_size);
+                    }
+                    let b = first_where(near, far[a], |t| cell(at(t)) != cell(c));
+                    let mut words = Vec::new();
+                    for k in 1..=6 {
+                        let mut y = c;
+                        y[a] = b - k as f32 * frame.step[a];
+                        words.push(word(y));
+                    }
+                    // And photons all around a point, from 2 steps within the radius to 2 beyond.
+                    for _ in 0..40 {
+                        let d = Vec3::new(rand() - 0.5, rand() - 0.5, rand() - 0.5).normalize_or(Vec3::X);
+                        let at = (r + (rand() - 0.5) * 4.0 * step) * d;
+                        words.push(word([c[0] + at.x, c[1] + at.y, c[2] + at.z]));
+                    }
+                    let (sorted, offsets) = if grid == 0 { hand_index(&p, &kd, &words) } else { hand_index(&p, &hash, &words) };
+                    let view = SortedPhotons { words: &sorted, offsets: &offsets };
+                    let mut points = vec![c];
+                    for d in [0.0, 0.25, 0.5, 1.0, 2.0, 3.0] {
+                        let mut x = c;
+                        x[a] = b + r + d * frame.step[a];
+                        points.push(x);
+                    }
+                    for x in points {
+                        let disc = kdray_shared::photon::Disc::new(&p, x, n, r);
+                        let brute = sorted.iter().filter(|w| disc.test(w.word).0).count() as u32;
+                        let found = if grid == 0 { irradiance(&kd, &p, &view, x, n, 0).found } else { irradiance(&hash, &p, &view, x, n, 0).found };
+                        assert_eq!(found, brute, "grid {grid}, box {min:?}..{max:?}, r {r}: a gather at {x:?} found {found}, brute force {brute}");
+                        // Photons behind the boundary that count from a point whose radius
+                        // ends before it: the cases this test is for.
+                        if x[a] - r >= b {
+                            accepted_behind += words[..6].iter().filter(|w| disc.test(w.word).0).count();
+                        }
+                    }
+                    // A point at infinity, or NaN: nothing found, no panic, no endless loop.
+                    if trial == 0 {
+                        for x in [[f32::INFINITY; 3], [f32::NEG_INFINITY, c[1], c[2]], [f32::NAN; 3], [1e38, -1e38, 1e38], [c[0], f32::INFINITY, c[2]]] {
+                            let found = if grid == 0 { irradiance(&kd, &p, &view, x, n, 0).found } else { irradiance(&hash, &p, &view, x, n, 0).found };
+                            assert_eq!(found, 0, "grid {grid}: a gather at {x:?} found {found}");
+                        }
+                    }
+                }
+            }
+        }
+    }
+    assert!(accepted_behind > 0, "no photon behind a boundary counted: the cases miss what they test");
 }
 
 /// The photon words' frame (`WordFrame`): steps of a power of two, fewer than 2^23 of them

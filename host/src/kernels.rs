@@ -1036,7 +1036,7 @@ impl Kernel for PhotonKeys<'_> {
                     photon::keys(t, &self.params, &HashGrid::new(&self.params), photons, counter, &mut keys, &mut counts, &mut segments, &mut ranks)
                 }
                 IndexBinds::Kd { nodes, leaves } => {
-                    let index = KdCells { nodes: nodes.host(), leaves: leaves.host(), cells: self.params.cells };
+                    let index = KdCells::new(&self.params, nodes.host(), leaves.host());
                     photon::keys(t, &self.params, &index, photons, counter, &mut keys, &mut counts, &mut segments, &mut ranks)
                 }
             }
@@ -1146,7 +1146,7 @@ impl Kernel for Gather<'_> {
             match self.index {
                 IndexBinds::Grid => photon::gather(t, &self.params, &HashGrid::new(&self.params), rays, &sorted, &mut paths, points, &mut next),
                 IndexBinds::Kd { nodes, leaves } => {
-                    let index = KdCells { nodes: nodes.host(), leaves: leaves.host(), cells: self.params.cells };
+                    let index = KdCells::new(&self.params, nodes.host(), leaves.host());
                     photon::gather(t, &self.params, &index, rays, &sorted, &mut paths, points, &mut next)
                 }
             }

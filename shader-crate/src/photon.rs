@@ -74,7 +74,7 @@ pub fn photon_keys_kd(
     #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] segments: &mut [u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] ranks: &mut [u32],
 ) {
-    let index = KdCells { nodes, leaves, cells: params.cells };
+    let index = KdCells::new(params, nodes, leaves);
     photon::keys(crate::item(id, groups), params, &index, photons, counter, keys, &mut Atomics(counts), &mut Atomics(segments), ranks);
 }
 
@@ -123,7 +123,7 @@ pub fn gather_kd(
     #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] points: &[u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] next_points: &mut [u32],
 ) {
-    let index = KdCells { nodes, leaves, cells: params.cells };
+    let index = KdCells::new(params, nodes, leaves);
     let sorted = SortedPhotons { words, offsets };
     photon::gather(crate::item(id, groups), params, &index, rays, &sorted, paths, points, &mut Atomics(next_points));
 }

@@ -642,6 +642,37 @@ pub trait PhotonIndex {
     fn visit<V: CellVisitor>(&self, x: [f32; 3], r: f32, map: u32, sorted: &SortedPhotons, v: &mut V);
 }
 
+/// How far from a query point x a photon that `Disc::test` counts at radius `r` may lie, along
+/// any axis: `r` widened by 10^-5 relative and by `gather_slack`. Each index visits every cell
+/// that holds photons within it of x, so a gather finds every photon brute force counts, however
+/// small `r` is against the scene box.
+#[inline(always)]
+pub fn gather_reach(p: &IndexParams, r: f32) -> f32 {
+    fma(r, 1e-5, r) + gather_slack(p)
+}
+
+/// A bound on how much farther than the radius a photon that `Disc::test` counts may lie from
+/// the query point, in scene units: the test decodes a word's offset from x against `base(x)` =
+/// origin − x rounded (`WordFrame`), whose rounding is up to half an ulp of |origin − x|, about
+/// a word step (origin lies 2^23 steps below the box); the word's position, which places the
+/// photon in its cell, is rounded to half an ulp of its magnitude. For x within the box (or
+/// within the radius of it) both together stay below 2^-22 of the largest magnitude m of the
+/// frame's origin and the box's corners: this is twice that, m · 2^-21 (0 for an empty box).
+/// Against a radius of 10^-6 of the box (where it matters) the test's rounding is about as
+/// large as the radius: without this the grid's window missed such photons (H100 review,
+/// 2026-12-05).
+#[inline(always)]
+pub fn gather_slack(p: &IndexParams) -> f32 {
+    let f = WordFrame::new(p);
+    let mut m = 0.0f32;
+    let mut a = 0;
+    while a < 3 {
+        m = m.max(f.origin[a].abs()).max(p.bounds_min[a].abs()).max(p.bounds_max[a].abs());
+        a += 1;
+    }
+    m * (1.0 / 2_097_152.0)
+}
+
 /// (B) A hashed uniform grid per map, its cells `wx` × w × w to a query's window (`grid_windows`):
 /// across the rows (y and z) cells of 2r/(w − 1) for w = 2 or 3 (cells of 2r or r), along them
 /// (x) cells of 2r/(wx − 1), as fine or finer (wx = w, or 5, 7 or 9 cells of r/2, r/3 or r/4
@@ -675,6 +706,8 @@ pub struct HashGrid {
     pub blocks: u32,
     /// Per map (global, caustic): the cell size along x, and along y and z.
     pub cell_size: [[f32; 2]; 2],
+    /// `gather_slack` of the index's parameters.
+    pub slack: f32,
 }
 
 /// The values of `IndexParams::grid` (a grid's cells along x a query visits: `grid_windows`).
@@ -694,14 +727,21 @@ pub fn grid_windows(grid: u32) -> [u32; 2] {
 }
 
 impl HashGrid {
-    /// The grid of `p`: origin `bounds_min`, `cells` buckets, cells of 2r/(wx − 1) along x and
-    /// 2r/(w − 1) along y and z for each map's radius r.
+    /// The grid of `p`: origin `bounds_min`, `cells` buckets, cells of 2s/(wx − 1) along x and
+    /// 2s/(w − 1) along y and z for each map's radius r, s its `gather_reach` widened once more
+    /// by as much (so a window of wx × w × w cells spans the reach on both sides of any point,
+    /// whatever the rounding of the cells' coordinates; at most 2^23 + 2 cells along an axis, so
+    /// `coord` counts them exactly in `f32`).
     #[inline(always)]
     pub fn new(p: &IndexParams) -> HashGrid {
         let [wx, w] = grid_windows(p.grid);
         let (kx, k) = (2.0 / (wx - 1) as f32, 2.0 / (w - 1) as f32);
-        let size = |r: f32| [kx * r, k * r];
-        HashGrid { origin: p.bounds_min, cells: p.cells, wx, w, blocks: p.cells / (wx * w * w), cell_size: [size(p.radius[0]), size(p.radius[1])] }
+        let slack = gather_slack(p);
+        let size = |r: f32| {
+            let s = fma(r, 2e-5, r) + 2.0 * slack;
+            [kx * s, k * s]
+        };
+        HashGrid { origin: p.bounds_min, cells: p.cells, wx, w, blocks: p.cells / (wx * w * w), cell_size: [size(p.radius[0]), size(p.radius[1])], slack }
     }
     #[inline(always)]
     fn coord(&self, x: f32, o: f32, inv: f32) -> u32 {
@@ -731,12 +771,15 @@ impl PhotonIndex for HashGrid {
         let (ix, i, c) = (1.0 / s[0], 1.0 / s[1], s[1]);
         let o = self.origin;
         let (wx, w) = (self.wx, self.w);
+        // Every photon `Disc::test` may count lies within the reach (`gather_reach`).
+        let r = fma(r, 1e-5, r) + self.slack;
         let lo = [self.coord(x[0] - r, o[0], ix), self.coord(x[1] - r, o[1], i), self.coord(x[2] - r, o[2], i)];
-        // At most wx (w) cells along x (y, z): the disc spans 2r, wx − 1 (w − 1) cell sizes.
+        // At most wx (w) cells along x (y, z): the reach spans 2r, less than wx − 1 (w − 1)
+        // cell sizes. (Wrapping: a point at infinity has lo = u32::MAX, and then no window.)
         let hi = [
-            self.coord(x[0] + r, o[0], ix).min(lo[0] + wx - 1),
-            self.coord(x[1] + r, o[1], i).min(lo[1] + w - 1),
-            self.coord(x[2] + r, o[2], i).min(lo[2] + w - 1),
+            self.coord(x[0] + r, o[0], ix).min(lo[0].wrapping_add(wx - 1)),
+            self.coord(x[1] + r, o[1], i).min(lo[1].wrapping_add(w - 1)),
+            self.coord(x[2] + r, o[2], i).min(lo[2].wrapping_add(w - 1)),
         ];
         // Along x, the cells of one block are consecutive buckets: a row of the window is one
         // run, or two where it crosses into the next block. The block hash is nested as in
@@ -747,13 +790,13 @@ impl PhotonIndex for HashGrid {
         let (qx0, mx0) = (lo[0] / wx, lo[0] % wx);
         // Each row (y, z) is clipped to the sphere: at distance d from x its rectangle across
         // y and z holds photons within r only along the chord x ± √(r² − d²), and none where
-        // d > r. Widened so that no photon a `Disc::test` counts is lost to rounding: the
-        // radius by a relative 10^-5 (the test's own rounding is below 10^-6), distances and
-        // the half chord by `eps`, far above the rounding of coordinates of magnitude `m` (the
-        // cells' bounds, `coord`'s products) and of a GPU's square root.
+        // d > r. Widened so that no photon a `Disc::test` counts is lost to rounding: r is the
+        // reach (above), distances and the half chord are widened by `eps`, far above the
+        // rounding of coordinates of magnitude `m` (the cells' bounds, `coord`'s products) and
+        // of a GPU's square root.
         let m = x[0].abs().max(x[1].abs()).max(x[2].abs()) + o[0].abs().max(o[1].abs()).max(o[2].abs()) + r;
         let eps = 1e-6 * m;
-        let r2 = r * r * (1.0 + 1e-5);
+        let r2 = r * r;
         // The window's first row along y and along z (`RowAxis`).
         let axis = |a: usize| RowAxis { k: lo[a], q: lo[a] / w, m: lo[a] % w, lo: fma(lo[a] as f32 - 1.0, c, o[a]) };
         let (y0, mut z) = (axis(1), axis(2));
@@ -879,6 +922,8 @@ pub struct KdCells<'a> {
     pub leaves: &'a [LeafCells],
     /// Cells of one map; the caustic map's cells are numbered after the global map's.
     pub cells: u32,
+    /// `gather_slack` of the index's parameters.
+    pub slack: f32,
 }
 
 #[inline(always)]
@@ -892,6 +937,14 @@ fn leaf_coord(x: f32, lo: f32, hi: f32, n: u32) -> u32 {
     let w = hi - lo;
     let t = if w > 0.0 { (x - lo) / w * n as f32 } else { 0.0 };
     floor_u32(t).min(n - 1)
+}
+
+impl<'a> KdCells<'a> {
+    /// The index of `p` over the tree's `nodes` and their cells `leaves`.
+    #[inline(always)]
+    pub fn new(p: &IndexParams, nodes: &'a [KdNode], leaves: &'a [LeafCells]) -> Self {
+        KdCells { nodes, leaves, cells: p.cells, slack: gather_slack(p) }
+    }
 }
 
 impl KdCells<'_> {
@@ -922,6 +975,10 @@ impl PhotonIndex for KdCells<'_> {
     }
     #[inline(always)]
     fn visit<V: CellVisitor>(&self, x: [f32; 3], r: f32, map: u32, sorted: &SortedPhotons, v: &mut V) {
+        // Every photon `Disc::test` may count lies within the reach (`gather_reach`); the
+        // leaves' planes and cells place photons and the box's corners by the same monotonic
+        // comparisons and coordinates.
+        let r = fma(r, 1e-5, r) + self.slack;
         let lo = sub3(x, [r; 3]);
         let hi = add3(x, [r; 3]);
         let nodes = self.nodes;

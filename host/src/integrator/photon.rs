@@ -692,7 +692,7 @@ impl<'t> PhotonMap<'t> {
             }
             Some((_, leaves, nodes)) => {
                 let (nodes, leaves) = (rt.read(nodes, nodes.len())?, rt.read(leaves, leaves.len())?);
-                let kd = KdCells { nodes: &nodes, leaves: &leaves, cells: p.cells };
+                let kd = KdCells::new(&p, &nodes, &leaves);
                 run(&|c| kd.visit(c.disc.x, r, 0, &sorted, c));
             }
         }
