@@ -335,9 +335,9 @@ fn gathers_find_what_brute_force_counts_at_radii_of_a_few_word_steps() {
                     let a = trial % 3;
                     let c: [f32; 3] = std::array::from_fn(|k| min[k] + (0.2 + 0.6 * rand()) * (max[k] - min[k]));
                     // Points a radius (and up to three steps) past a cell boundary b along axis
-                    // a, photons on the words' steps just behind it.
-                    // The first change of cell along a, stepping a quarter of a cell (so the
-                    // next cell's), then its boundary.
+                    // a, photons on the words' steps just behind it. b: the first change of cell
+                    // along a, found by stepping a quarter of a cell (so into the next cell),
+                    // then bisecting. `at(t)`: c with its coordinate along a at t.
                     let size = if grid == 0 { (max[a] - min[a]) / 37.0 } else { hash.cell_size[0][a.min(1)] };
                     let at = |t: f32| {
                         let mut y = c;
@@ -354,28 +354,25 @@ fn gathers_find_what_brute_force_counts_at_radii_of_a_few_word_steps() {
                     let b = first_where(near, far[a], |t| cell(at(t)) != cell(c));
                     let mut words = Vec::new();
                     for k in 1..=6 {
-                        let mut y = c;
-                        y[a] = b - k as f32 * frame.step[a];
-                        words.push(word(y));
+                        words.push(word(at(b - k as f32 * frame.step[a])));
                     }
                     // And photons all around a point, from 2 steps within the radius to 2 beyond.
                     for _ in 0..40 {
                         let d = Vec3::new(rand() - 0.5, rand() - 0.5, rand() - 0.5).normalize_or(Vec3::X);
-                        let at = (r + (rand() - 0.5) * 4.0 * step) * d;
-                        words.push(word([c[0] + at.x, c[1] + at.y, c[2] + at.z]));
+                        let off = (r + (rand() - 0.5) * 4.0 * step) * d;
+                        words.push(word([c[0] + off.x, c[1] + off.y, c[2] + off.z]));
                     }
                     let (sorted, offsets) = if grid == 0 { hand_index(&p, &kd, &words) } else { hand_index(&p, &hash, &words) };
                     let view = SortedPhotons { words: &sorted, offsets: &offsets };
+                    let found_at = |x: [f32; 3]| if grid == 0 { irradiance(&kd, &p, &view, x, n, 0).found } else { irradiance(&hash, &p, &view, x, n, 0).found };
                     let mut points = vec![c];
                     for d in [0.0, 0.25, 0.5, 1.0, 2.0, 3.0] {
-                        let mut x = c;
-                        x[a] = b + r + d * frame.step[a];
-                        points.push(x);
+                        points.push(at(b + r + d * frame.step[a]));
                     }
                     for x in points {
                         let disc = kdray_shared::photon::Disc::new(&p, x, n, r);
                         let brute = sorted.iter().filter(|w| disc.test(w.word).0).count() as u32;
-                        let found = if grid == 0 { irradiance(&kd, &p, &view, x, n, 0).found } else { irradiance(&hash, &p, &view, x, n, 0).found };
+                        let found = found_at(x);
                         assert_eq!(found, brute, "grid {grid}, box {min:?}..{max:?}, r {r}: a gather at {x:?} found {found}, brute force {brute}");
                         // Photons behind the boundary that count from a point whose radius
                         // ends before it: the cases this test is for.
@@ -386,7 +383,7 @@ fn gathers_find_what_brute_force_counts_at_radii_of_a_few_word_steps() {
                     // A point at infinity, or NaN: nothing found, no panic, no endless loop.
                     if trial == 0 {
                         for x in [[f32::INFINITY; 3], [f32::NEG_INFINITY, c[1], c[2]], [f32::NAN; 3], [1e38, -1e38, 1e38], [c[0], f32::INFINITY, c[2]]] {
-                            let found = if grid == 0 { irradiance(&kd, &p, &view, x, n, 0).found } else { irradiance(&hash, &p, &view, x, n, 0).found };
+                            let found = found_at(x);
                             assert_eq!(found, 0, "grid {grid}: a gather at {x:?} found {found}");
                         }
                     }

@@ -648,7 +648,13 @@ pub trait PhotonIndex {
 /// small `r` is against the scene box.
 #[inline(always)]
 pub fn gather_reach(p: &IndexParams, r: f32) -> f32 {
-    fma(r, 1e-5, r) + gather_slack(p)
+    reach(r, gather_slack(p))
+}
+
+/// `gather_reach` from the index's `gather_slack`, which each index keeps.
+#[inline(always)]
+fn reach(r: f32, slack: f32) -> f32 {
+    fma(r, 1e-5, r) + slack
 }
 
 /// A bound on how much farther than the radius a photon that `Disc::test` counts may lie from
@@ -659,8 +665,8 @@ pub fn gather_reach(p: &IndexParams, r: f32) -> f32 {
 /// within the radius of it) both together stay below 2^-22 of the largest magnitude m of the
 /// frame's origin and the box's corners: this is twice that, m · 2^-21 (0 for an empty box).
 /// Against a radius of 10^-6 of the box (where it matters) the test's rounding is about as
-/// large as the radius: without this the grid's window missed such photons (H100 review,
-/// 2026-12-05).
+/// large as the radius: without this the grid's window missed such photons (found by a code
+/// review, 2026-12-05).
 #[inline(always)]
 pub fn gather_slack(p: &IndexParams) -> f32 {
     let f = WordFrame::new(p);
@@ -772,7 +778,7 @@ impl PhotonIndex for HashGrid {
         let o = self.origin;
         let (wx, w) = (self.wx, self.w);
         // Every photon `Disc::test` may count lies within the reach (`gather_reach`).
-        let r = fma(r, 1e-5, r) + self.slack;
+        let r = reach(r, self.slack);
         let lo = [self.coord(x[0] - r, o[0], ix), self.coord(x[1] - r, o[1], i), self.coord(x[2] - r, o[2], i)];
         // At most wx (w) cells along x (y, z): the reach spans 2r, less than wx − 1 (w − 1)
         // cell sizes. (Wrapping: a point at infinity has lo = u32::MAX, and then no window.)
@@ -978,7 +984,7 @@ impl PhotonIndex for KdCells<'_> {
         // Every photon `Disc::test` may count lies within the reach (`gather_reach`); the
         // leaves' planes and cells place photons and the box's corners by the same monotonic
         // comparisons and coordinates.
-        let r = fma(r, 1e-5, r) + self.slack;
+        let r = reach(r, self.slack);
         let lo = sub3(x, [r; 3]);
         let hi = add3(x, [r; 3]);
         let nodes = self.nodes;
