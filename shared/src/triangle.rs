@@ -16,7 +16,7 @@
 //!   `a*b - c*d` into an FMA and break the antisymmetry the proof relies on.
 //! * A degenerate (zero-area) triangle gives `det == 0` and never hits; the scene loader also
 //!   drops triangles whose area is exactly 0.
-use crate::math::{diff_of_products, fma, pow2_normaliser};
+use crate::math::{diff_of_products, fma, pow2_normaliser, LaneMask};
 use crate::ray::Ray;
 
 /// Per-ray constants of the test, computed once per ray.
@@ -159,7 +159,7 @@ pub fn intersect_triangle_lanes<const W: usize>(
     b1: &mut [f32; W],
     b2: &mut [f32; W],
 ) -> u32 {
-    let mut hits = 0u32;
+    let mut hits = LaneMask::<W>::new();
     let mut l = 0;
     while l < W {
         let o = [r.origin[0][l], r.origin[1][l], r.origin[2][l]];
@@ -175,10 +175,10 @@ pub fn intersect_triangle_lanes<const W: usize>(
         b2[l] = e[2] * inv_det;
         // NaN fails both comparisons: a miss, as in `intersect_triangle`.
         let hit = !beside(e) & (det != 0.0) & (tl >= t_min[l]) & (tl <= t_max[l]);
-        hits |= (hit as u32) << l;
+        hits.put(l, hit);
         l += 1;
     }
-    hits
+    hits.bits()
 }
 
 /// `v`'s coordinates along the axes after `kz`, after that, and `kz` (the rotation that makes

@@ -30,7 +30,7 @@
 //! Every loop is bounded by the node count (a packet enters each node at most once).
 use super::{widened, Bvh, SlotBits, BVH_WIDTH, MAX_BVH_DEPTH, META_EMPTY};
 use crate::aabb::inv_dir;
-use crate::math::{gamma, max_num, min_num};
+use crate::math::{gamma, max_num, min_num, LaneMask};
 use crate::query::Query;
 use crate::ray::Ray;
 use crate::stats::Stats;
@@ -173,7 +173,7 @@ pub fn traverse_packet<Q: Query, S: Stats, const W: usize>(bvh: &Bvh, rays: &[Ra
                 let s = j ^ oct_inv;
                 if node.meta(s) != META_EMPTY {
                     let si = s as usize;
-                    let mut m = 0u32;
+                    let mut m = LaneMask::<W>::new();
                     let mut l = 0;
                     while l < W {
                         // Per axis the distances to both planes; the nearer is the near plane
@@ -187,13 +187,10 @@ pub fn traverse_packet<Q: Query, S: Stats, const W: usize>(bvh: &Bvh, rays: &[Ra
                         // monotonic.)
                         let near = max_num(max_num(min_num(x0, x1), min_num(y0, y1)), max_num(min_num(z0, z1), t0[l]));
                         let far = min_num(min_num(max_num(x0, x1), max_num(y0, y1)), max_num(z0, z1)) * FAR;
-                        let far = min_num(far, t1[l]);
-                        if near <= far {
-                            m |= 1 << l;
-                        }
+                        m.put(l, near <= min_num(far, t1[l]));
                         l += 1;
                     }
-                    lanes[j as usize] = m & mask;
+                    lanes[j as usize] = m.bits() & mask;
                 }
                 j += 1;
             }
