@@ -872,17 +872,24 @@ impl PhotonIndex for HashGrid {
                 [j, b] = unsafe { runs[next].assume_init() };
                 next += 1;
             }
-            // Two photons a step: both loads are issued before either is tested. A run's odd
-            // last photon is paired with `PADDING` (counted by no test): no separate step for
-            // one photon, which the other lanes waited on.
+            // Four photons a step: all four loads are issued before any is tested. The places
+            // past a run's end are `PADDING` (counted by no test): no separate step for a run's
+            // last one to three photons, which the other lanes waited on. (Two a step was 8–11 %
+            // slower on the H100 at ~50 photons found a point, the conference room the same.)
             let j1 = (j + 1).min(b - 1);
-            // SAFETY: j ≤ j1 < b (a kept run is not empty), and `run` clamps b to the words
-            // held.
-            let (w0, w1) = unsafe { (sorted.word(j), sorted.word(j1)) };
+            let j2 = (j + 2).min(b - 1);
+            let j3 = (j + 3).min(b - 1);
+            // SAFETY: j ≤ j1 ≤ j2 ≤ j3 < b (a kept run is not empty), and `run` clamps b to the
+            // words held.
+            let (w0, w1, w2, w3) = unsafe { (sorted.word(j), sorted.word(j1), sorted.word(j2), sorted.word(j3)) };
             let w1 = if j1 > j { w1 } else { PADDING };
+            let w2 = if j2 > j1 { w2 } else { PADDING };
+            let w3 = if j3 > j2 { w3 } else { PADDING };
             v.word(w0, j, sorted);
             v.word(w1, j1, sorted);
-            j = (j + 2).min(b);
+            v.word(w2, j2, sorted);
+            v.word(w3, j3, sorted);
+            j = (j + 4).min(b);
         }
     }
 }
