@@ -22,10 +22,11 @@ pub fn fma(a: f32, b: f32, c: f32) -> f32 {
 }
 
 /// A mask of lanes (bit l for lane l < `W` ≤ 32) set one lane at a time in a loop over the
-/// lanes. Natively with AVX and eight lanes each lane's flag is kept as a whole word of its
-/// sign and the mask taken at once (`vmovmskps`): a compiler turns `m |= flag << l` over eight
-/// vectorised lanes into an and and an or-reduction of the eight bits, 14 % of a BVH packet's
-/// walk. Elsewhere (the GPU among them) the bits themselves.
+/// lanes, each lane once. Natively with AVX each lane's flag is kept as a whole word of its
+/// sign, and with eight lanes the mask is taken at once (`vmovmskps`; other widths shift the
+/// signs in): a compiler turns `m |= flag << l` over eight vectorised lanes into an and and an
+/// or-reduction of the eight bits, 14 % of a BVH packet's walk. Elsewhere (the GPU among them)
+/// the bits themselves.
 #[derive(Copy, Clone)]
 pub struct LaneMask<const W: usize> {
     #[cfg(all(target_arch = "x86_64", target_feature = "avx"))]

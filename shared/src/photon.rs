@@ -589,9 +589,9 @@ pub fn trace_photons<M: Method, O: Store<Photon> + ?Sized, C: AtomicStore + ?Siz
 /// (The photons are passed along rather than held: a mutable visitor holding storage buffer
 /// slices crashed NVIDIA's SPIR-V compiler, driver 580.)
 pub trait CellVisitor {
-    /// Visits photon `j` of `sorted`, whose word (`PhotonWord`) is `w` — or pads a step of
-    /// two photons: then `w` is `PADDING` (`is_padding`; no `Disc::test` counts it) and `j`
-    /// the photon just visited.
+    /// Visits photon `j` of `sorted`, whose word (`PhotonWord`) is `w` — or pads the grid's
+    /// step of four photons past a run's end: then `w` is `PADDING` (`is_padding`; no
+    /// `Disc::test` counts it) and `j` the run's last photon.
     fn word(&mut self, w: UVec4, j: u32, sorted: &SortedPhotons);
 }
 

@@ -639,7 +639,7 @@ impl<'t> PhotonMap<'t> {
             disc: Disc,
             visited: u64,
             found: u64,
-            /// Words passed, padding included (two a step).
+            /// Words passed, padding included (the grid's four a step).
             words: u64,
         }
         impl CellVisitor for Count {
@@ -659,7 +659,9 @@ impl<'t> PhotonMap<'t> {
         let (rays, paths) = (rt.read(&fb.rays, count as usize)?, rt.read(&fb.paths, count as usize)?);
         let r = p.radius[0];
         let mut s = QueryStats::default();
-        let mut run = |index: &dyn Fn(&mut Count)| {
+        // `per_step`: words a gather step takes (the grid's `HashGrid::visit`: four, padding
+        // included; the kd index's leaves: one).
+        let mut run = |per_step: u64, index: &dyn Fn(&mut Count)| {
             let gather = |k: usize| {
                 (paths[k].flags & kdray_shared::PATH_GATHER != 0).then(|| {
                     let mut c = Count { disc: Disc::new(&p, rays[k].origin, rays[k].dir, r), visited: 0, found: 0, words: 0 };
@@ -679,7 +681,7 @@ impl<'t> PhotonMap<'t> {
                 let (mut lanes, mut most) = (0u64, 0u64);
                 for k in g * 32..g * 32 + 32 {
                     if let Some(c) = gather(k) {
-                        let steps = c.words.div_ceil(2);
+                        let steps = c.words.div_ceil(per_step);
                         lanes += 1;
                         most = most.max(steps);
                         s.lane_steps += steps;
@@ -691,12 +693,12 @@ impl<'t> PhotonMap<'t> {
         match &self.kd {
             None => {
                 let grid = HashGrid::new(&p);
-                run(&|c| grid.visit(c.disc.x, r, 0, &sorted, c));
+                run(4, &|c| grid.visit(c.disc.x, r, 0, &sorted, c));
             }
             Some((_, leaves, nodes)) => {
                 let (nodes, leaves) = (rt.read(nodes, nodes.len())?, rt.read(leaves, leaves.len())?);
                 let kd = KdCells::new(&p, &nodes, &leaves);
-                run(&|c| kd.visit(c.disc.x, r, 0, &sorted, c));
+                run(1, &|c| kd.visit(c.disc.x, r, 0, &sorted, c));
             }
         }
         Ok(s)
@@ -847,8 +849,8 @@ pub struct QueryStats {
     pub visited: u64,
     /// Photons that counted (within the radius, on the point's side).
     pub found: u64,
-    /// Steps (two photons each, `HashGrid::visit`'s) of the gather points of sampled groups of
-    /// 32 consecutive paths (a subgroup's, on the GPU), summed over those points.
+    /// Steps (the grid's four photons each, `HashGrid::visit`'s; the kd index's one) of the
+    /// gather points of sampled groups of 32 consecutive paths (a subgroup's, on the GPU), summed over those points.
     pub lane_steps: u64,
     /// The same groups' longest gathers: per group, its gather points times the most steps any
     /// of them took (a subgroup takes as long as its longest lane), summed.
