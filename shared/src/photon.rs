@@ -590,10 +590,15 @@ pub fn trace_photons<M: Method, O: Store<Photon> + ?Sized, C: AtomicStore + ?Siz
 /// slices crashed NVIDIA's SPIR-V compiler, driver 580.)
 pub trait CellVisitor {
     /// Visits photon `j` of `sorted`, whose word (`PhotonWord`) is `w` — or pads the grid's
-    /// step of four photons past a run's end: then `w` is `PADDING` (`is_padding`; no
+    /// step (`GRID_STEP` photons) past a run's end: then `w` is `PADDING` (`is_padding`; no
     /// `Disc::test` counts it) and `j` the run's last photon.
     fn word(&mut self, w: UVec4, j: u32, sorted: &SortedPhotons);
 }
+
+/// Photons a step of the grid's gather loads and visits (`HashGrid::visit`), padding included.
+pub const GRID_STEP: u32 = 4;
+// `HashGrid::visit`'s step is written out for four photons.
+const _: () = assert!(GRID_STEP == 4);
 
 /// Whether a word passed to `CellVisitor::word` pads a step (`PADDING`), not a photon.
 #[inline(always)]
@@ -643,15 +648,9 @@ pub trait PhotonIndex {
 }
 
 /// How far from a query point x a photon that `Disc::test` counts at radius `r` may lie, along
-/// any axis: `r` widened by 10^-5 relative and by `gather_slack`. Each index visits every cell
-/// that holds photons within it of x, so a gather finds every photon brute force counts, however
-/// small `r` is against the scene box.
-#[inline(always)]
-pub fn gather_reach(p: &IndexParams, r: f32) -> f32 {
-    reach(r, gather_slack(p))
-}
-
-/// `gather_reach` from the index's `gather_slack`, which each index keeps.
+/// any axis: `r` widened by 10^-5 relative and by `slack`, the index's `gather_slack` (which
+/// each index keeps). Each index visits every cell that holds photons within it of x, so a
+/// gather finds every photon brute force counts, however small `r` is against the scene box.
 #[inline(always)]
 fn reach(r: f32, slack: f32) -> f32 {
     fma(r, 1e-5, r) + slack
@@ -734,7 +733,7 @@ pub fn grid_windows(grid: u32) -> [u32; 2] {
 
 impl HashGrid {
     /// The grid of `p`: origin `bounds_min`, `cells` buckets, cells of 2s/(wx − 1) along x and
-    /// 2s/(w − 1) along y and z for each map's radius r, s its `gather_reach` widened once more
+    /// 2s/(w − 1) along y and z for each map's radius r, s its `reach` widened once more
     /// by as much (so a window of wx × w × w cells spans the reach on both sides of any point,
     /// whatever the rounding of the cells' coordinates; at most 2^23 + 2 cells along an axis, so
     /// `coord` counts them exactly in `f32`).
@@ -777,7 +776,7 @@ impl PhotonIndex for HashGrid {
         let (ix, i, c) = (1.0 / s[0], 1.0 / s[1], s[1]);
         let o = self.origin;
         let (wx, w) = (self.wx, self.w);
-        // Every photon `Disc::test` may count lies within the reach (`gather_reach`).
+        // Every photon `Disc::test` may count lies within the reach (`reach`).
         let r = reach(r, self.slack);
         let lo = [self.coord(x[0] - r, o[0], ix), self.coord(x[1] - r, o[1], i), self.coord(x[2] - r, o[2], i)];
         // At most wx (w) cells along x (y, z): the reach spans 2r, less than wx − 1 (w − 1)
@@ -889,7 +888,7 @@ impl PhotonIndex for HashGrid {
             v.word(w1, j1, sorted);
             v.word(w2, j2, sorted);
             v.word(w3, j3, sorted);
-            j = (j + 4).min(b);
+            j = (j + GRID_STEP).min(b);
         }
     }
 }
@@ -988,7 +987,7 @@ impl PhotonIndex for KdCells<'_> {
     }
     #[inline(always)]
     fn visit<V: CellVisitor>(&self, x: [f32; 3], r: f32, map: u32, sorted: &SortedPhotons, v: &mut V) {
-        // Every photon `Disc::test` may count lies within the reach (`gather_reach`); the
+        // Every photon `Disc::test` may count lies within the reach (`reach`); the
         // leaves' planes and cells place photons and the box's corners by the same monotonic
         // comparisons and coordinates.
         let r = reach(r, self.slack);

@@ -639,7 +639,7 @@ impl<'t> PhotonMap<'t> {
             disc: Disc,
             visited: u64,
             found: u64,
-            /// Words passed, padding included (the grid's four a step).
+            /// Words passed, padding included (the grid's `GRID_STEP` a step).
             words: u64,
         }
         impl CellVisitor for Count {
@@ -659,7 +659,7 @@ impl<'t> PhotonMap<'t> {
         let (rays, paths) = (rt.read(&fb.rays, count as usize)?, rt.read(&fb.paths, count as usize)?);
         let r = p.radius[0];
         let mut s = QueryStats::default();
-        // `per_step`: words a gather step takes (the grid's `HashGrid::visit`: four, padding
+        // `per_step`: words a gather step takes (the grid's `HashGrid::visit`: `GRID_STEP`, padding
         // included; the kd index's leaves: one).
         let mut run = |per_step: u64, index: &dyn Fn(&mut Count)| {
             let gather = |k: usize| {
@@ -693,7 +693,7 @@ impl<'t> PhotonMap<'t> {
         match &self.kd {
             None => {
                 let grid = HashGrid::new(&p);
-                run(4, &|c| grid.visit(c.disc.x, r, 0, &sorted, c));
+                run(kdray_shared::photon::GRID_STEP as u64, &|c| grid.visit(c.disc.x, r, 0, &sorted, c));
             }
             Some((_, leaves, nodes)) => {
                 let (nodes, leaves) = (rt.read(nodes, nodes.len())?, rt.read(leaves, leaves.len())?);
@@ -849,7 +849,7 @@ pub struct QueryStats {
     pub visited: u64,
     /// Photons that counted (within the radius, on the point's side).
     pub found: u64,
-    /// Steps (the grid's four photons each, `HashGrid::visit`'s; the kd index's one) of the
+    /// Steps (the grid's `GRID_STEP` photons each, `HashGrid::visit`'s; the kd index's one) of the
     /// gather points of sampled groups of 32 consecutive paths (a subgroup's, on the GPU), summed over those points.
     pub lane_steps: u64,
     /// The same groups' longest gathers: per group, its gather points times the most steps any
