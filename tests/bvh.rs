@@ -257,7 +257,8 @@ fn stanford_bunny_from_shared_scenes() {
 /// `true`, so the packet walk is what answers) and every lane gets the one-ray walk's answer bit
 /// for bit, closest and any hit, with eight lanes and four, invalid lanes mixed in (the first
 /// among them), and intervals that differ from lane to lane (some starting or ending inside the
-/// sphere). Packets from scattered origins are declined.
+/// sphere; any-hit lanes that part go on alone, `bvh::packet::SOLO`). Packets from scattered
+/// origins are declined.
 #[test]
 fn packets_go_together_and_answer_as_one_ray_each() {
     use kdray_shared::bvh::{traverse_packet, TriWords};

@@ -52,6 +52,9 @@ pub trait Query {
     /// The end of the interval still searched: a primitive whose hits all lie beyond it cannot
     /// change the answer (one at exactly this distance still can: the tie rule).
     fn bound(&self) -> f32;
+    /// Whether the first hit found answers the query (any hit), so that rays go apart in the
+    /// BVH's packets (`bvh::packet::SOLO`) and nothing else changes.
+    const ANY_HIT: bool = false;
 }
 
 impl<Q: Query> Visitor for Q {
@@ -119,6 +122,7 @@ pub struct AnyHit {
 }
 
 impl Query for AnyHit {
+    const ANY_HIT: bool = true;
     #[inline(always)]
     fn new(ray: &Ray) -> Self {
         AnyHit { found: false, t_max: ray.t_max }

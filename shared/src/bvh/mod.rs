@@ -453,6 +453,13 @@ fn widened(t0: f32, t1: f32, node: &BvhNode, inv_dmax: f32) -> (f32, f32) {
 /// (a branch per node kept both tests' registers live: 80 instead of 64 on the H200 driver).
 #[inline(always)]
 pub fn traverse<Q: Query, S: Stats>(bvh: &Bvh, ray: &Ray, q: &mut Q, stats: &mut S) {
+    traverse_from(bvh, 0, ray, q, stats)
+}
+
+/// `traverse` through the subtree of node `start` alone (0: the whole tree): the packet walk
+/// hands a node it would enter for a single lane over to that lane (`packet::SOLO`).
+#[inline(always)]
+pub(crate) fn traverse_from<Q: Query, S: Stats>(bvh: &Bvh, start: u32, ray: &Ray, q: &mut Q, stats: &mut S) {
     let r = match ShearedRay::new(ray) {
         Some(r) => r,
         None => return,
@@ -464,16 +471,16 @@ pub fn traverse<Q: Query, S: Stats>(bvh: &Bvh, ray: &Ray, q: &mut Q, stats: &mut
     // SAFETY: the tree has a node (checked above).
     let root = unsafe { bvh.nodes.get_unchecked(0) };
     if br.tame(&root) {
-        walk::<Q, S, true>(bvh, ray, &r, &br, q, stats);
+        walk::<Q, S, true>(bvh, start, ray, &r, &br, q, stats);
     } else {
-        walk::<Q, S, false>(bvh, ray, &r, &br, q, stats);
+        walk::<Q, S, false>(bvh, start, ray, &r, &br, q, stats);
     }
 }
 
-/// `traverse`'s walk, every child test by `fast_children` (`FAST`, for a `BoxRay::tame` ray)
-/// or by `exact_children`.
+/// `traverse_from`'s walk from node `start`, every child test by `fast_children` (`FAST`, for a
+/// `BoxRay::tame` ray) or by `exact_children`.
 #[inline(always)]
-fn walk<Q: Query, S: Stats, const FAST: bool>(bvh: &Bvh, ray: &Ray, r: &ShearedRay, br: &BoxRay, q: &mut Q, stats: &mut S) {
+fn walk<Q: Query, S: Stats, const FAST: bool>(bvh: &Bvh, start: u32, ray: &Ray, r: &ShearedRay, br: &BoxRay, q: &mut Q, stats: &mut S) {
     let n_nodes = bvh.nodes.len() as u32;
     let n_tris = bvh.tris.len() as u32;
     let d = ray.dir;
@@ -481,8 +488,9 @@ fn walk<Q: Query, S: Stats, const FAST: bool>(bvh: &Bvh, ray: &Ray, r: &ShearedR
     // Not initialised (64 stores a ray otherwise): entries below `sp` are written before read.
     let mut stack = [MaybeUninit::<[u32; 2]>::uninit(); MAX_BVH_DEPTH];
     let mut sp = 0usize;
-    // The root as the only node of a group with no internal mask: bit 31, relative index 0.
-    let mut nodes = [0u32, 1 << 31];
+    // The start node as the only node of a group with no internal mask: bit 31, relative index
+    // 0.
+    let mut nodes = [start, 1 << 31];
     // Hang guard: every step enters one node, and a tree enters each node at most once.
     let max_steps = n_nodes.min(u32::MAX - 1) + 1;
     let mut steps = 0u32;

@@ -27,6 +27,8 @@
 //! index; any hit: whether one exists), each lane's answer is the single-ray walk's, bit for bit
 //! (a leaf triangle is tested for all lanes at once by `triangle::intersect_triangle_lanes`,
 //! the same operations as the one-ray test, and its hits offered to each lane's query).
+//! A lane that an any-hit packet hands to the single-ray walk (`SOLO`) gets that walk's
+//! answer over the node's subtree, with the same query.
 //! Every loop is bounded by the node count (a packet enters each node at most once).
 use super::{widened, Bvh, SlotBits, BVH_WIDTH, MAX_BVH_DEPTH, META_EMPTY};
 use crate::aabb::inv_dir;
@@ -47,6 +49,14 @@ const STACK: usize = BVH_WIDTH * MAX_BVH_DEPTH;
 
 /// Far-plane widening of the slab test (`aabb::slab`'s).
 const FAR: f32 = 1.0 + 2.0 * gamma(3);
+
+/// Any-hit packets enter a node that at most this many of their lanes reach with those lanes
+/// one by one (`traverse_from`: the single-ray walk through the node's subtree), as Embree's
+/// hybrid traversal does: a packet's node test costs about what eight single-ray ones do,
+/// whatever its lanes. Shadow rays toward points of area lights scatter (natively, 2 cores:
+/// the conference room's 10 % faster); closest-hit packets, whose coherent lanes seldom part,
+/// ran 3–6 % slower with it and do not switch (`docs/benchmarks/2026-12-06-cpu-packet-levers`).
+pub const SOLO: u32 = 1;
 
 /// Traverses `rays` together for `q` (lane l's query answers ray l) and returns `true`, or
 /// returns `false` at once, having tested nothing, for a packet whose valid rays' origins lie
@@ -150,6 +160,15 @@ pub fn traverse_packet<Q: Query, S: Stats, const W: usize>(bvh: &Bvh, rays: &[Ra
             // A corrupt index (the host validates trees): the walk ends.
             mask = 0;
             steps = max_steps;
+        }
+        if Q::ANY_HIT && mask != 0 && mask.count_ones() <= SOLO {
+            // Each lane walks the subtree alone with its own query (answers do not depend on
+            // the order triangles are tested in).
+            while mask != 0 {
+                let l = mask.trailing_zeros() as usize;
+                mask &= mask - 1;
+                super::traverse_from(bvh, entry[0], &rays[l], &mut q[l], stats);
+            }
         }
         if mask != 0 {
             // SAFETY: entry[0] < n_nodes, checked above.
