@@ -257,8 +257,9 @@ fn stanford_bunny_from_shared_scenes() {
 /// `true`, so the packet walk is what answers) and every lane gets the one-ray walk's answer bit
 /// for bit, closest and any hit, with eight lanes and four, invalid lanes mixed in (the first
 /// among them), and intervals that differ from lane to lane (some starting or ending inside the
-/// sphere; any-hit lanes that part go on alone, `bvh::packet::SOLO`). Packets from scattered
-/// origins are declined.
+/// sphere). The lanes fan out from their point, so any-hit lanes part and go on alone
+/// (`bvh::packet::SOLO`): the test fails without that walk. Packets from scattered origins are
+/// declined.
 #[test]
 fn packets_go_together_and_answer_as_one_ray_each() {
     use kdray_shared::bvh::{traverse_packet, TriWords};

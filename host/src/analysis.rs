@@ -67,7 +67,10 @@ pub fn counts(tris: &[Triangle], tree: &KdTreeData, accel: Accel, rays: &[Ray], 
 /// Traversal counters of the wide BVH (closest hit if `closest`, else any hit), one per group
 /// of four rays in order (summed over the four), like `counts`. With `packets`, as the native
 /// runtime runs `bvh+packets`: eight rays per packet, whose node and leaf visits count once for
-/// the eight (in the first of its two groups; the second gets zeros).
+/// the eight (in the first of its two groups; the second gets zeros). Rays that go alone (a
+/// declined packet's, an any-hit lane's `bvh::packet::SOLO` walk) count per ray, and the
+/// single-ray walk counts one leaf visit per node whose leaf slots it enters (the packet walk:
+/// one per slot), so triangles per ray compare across the two, leaves less so.
 pub fn bvh_counts(bvh: &crate::bvh::BvhData, rays: &[Ray], closest: bool, packets: bool) -> Vec<Counters> {
     let b = kdray_shared::bvh::Bvh { nodes: Parts::one(&bvh.nodes), tris: Parts::one(kdray_shared::bvh::TriWords::cast(&bvh.tris)) };
     fn packet<Q: Query>(b: &kdray_shared::bvh::Bvh, c: &[Ray], s: &mut Counters) {

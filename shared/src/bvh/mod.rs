@@ -456,8 +456,9 @@ pub fn traverse<Q: Query, S: Stats>(bvh: &Bvh, ray: &Ray, q: &mut Q, stats: &mut
     traverse_from(bvh, 0, ray, q, stats)
 }
 
-/// `traverse` through the subtree of node `start` alone (0: the whole tree): the packet walk
-/// hands a node it would enter for a single lane over to that lane (`packet::SOLO`).
+/// `traverse` through the subtree of node `start` alone (0: the whole tree), `start`'s own box
+/// untested (its parent's test let the ray in); an index past the nodes walks nothing. Any-hit
+/// packets hand a node they would enter for at most `packet::SOLO` lanes to those lanes.
 #[inline(always)]
 pub(crate) fn traverse_from<Q: Query, S: Stats>(bvh: &Bvh, start: u32, ray: &Ray, q: &mut Q, stats: &mut S) {
     let r = match ShearedRay::new(ray) {

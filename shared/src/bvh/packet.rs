@@ -54,7 +54,7 @@ const FAR: f32 = 1.0 + 2.0 * gamma(3);
 /// one by one (`traverse_from`: the single-ray walk through the node's subtree), as Embree's
 /// hybrid traversal does: a packet's node test costs about what eight single-ray ones do,
 /// whatever its lanes. Shadow rays toward points of area lights scatter (natively, 2 cores:
-/// the conference room's 10 % faster); closest-hit packets, whose coherent lanes seldom part,
+/// the conference room's 7–10 % faster); closest-hit packets, whose coherent lanes seldom part,
 /// ran 3–6 % slower with it and do not switch (`docs/benchmarks/2026-12-06-cpu-packet-levers`).
 pub const SOLO: u32 = 1;
 

@@ -89,7 +89,7 @@ pub fn write_rows(dir: &Path, name: &str, title: &str, device: &str, summary: &s
     let mut md = format!(
         "# {title}\n\nDate {date}; machine {machine}; device {device}.\n\n\
          Mrays/s: median of the timed repetitions after a warm-up, from GPU timestamps where the adapter has them, and wall time (submit to completion) always. \
-         Counts per ray come from a separate native counting run (a packet's node visits count once for its rays: four for the kd-tree's, eight for the BVH's). \
+         Counts per ray come from a separate native counting run (a packet's node visits count once for its rays: four for the kd-tree's, eight for the BVH's; rays that leave or skip the packet, one by one). \
          Oracle mismatch: fraction of {ORACLE_SAMPLE} sampled rays whose answer differs from the brute-force oracle; vs reference: fraction of all rays whose answer differs from the native full-stack traversal.\n\n\
          {summary}\n## All rows\n\n\
          | scene | tris | res | ray type | rays | method | Mrays/s (GPU time) | Mrays/s (wall) | nodes/ray | vs stack | leaves/ray | tris/ray | restarts/ray | oracle mismatch | vs reference | notes |\n\
