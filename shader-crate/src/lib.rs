@@ -110,5 +110,25 @@ impl AtomicStore for Atomics<'_> {
             self.0.atomic_add(i, v)
         }
     }
+    /// One atomic addition per subgroup: the active lanes' values summed, each lane's value
+    /// before it the sum of the lanes' below it (an exclusive scan) after the subgroup's base,
+    /// which the lowest active lane takes and hands on.
+    #[inline(always)]
+    fn atomic_add_shared(&mut self, i: usize, v: u32) -> u32 {
+        #[cfg(target_arch = "spirv")]
+        {
+            use spirv_std::arch::{subgroup_broadcast_first, subgroup_elect, subgroup_exclusive_i_add, subgroup_i_add};
+            let (before, total) = (subgroup_exclusive_i_add(v), subgroup_i_add(v));
+            let mut base = 0;
+            if subgroup_elect() {
+                base = self.atomic_add(i, total);
+            }
+            subgroup_broadcast_first(base).wrapping_add(before)
+        }
+        #[cfg(not(target_arch = "spirv"))]
+        {
+            self.atomic_add(i, v)
+        }
+    }
 }
 

@@ -64,6 +64,14 @@ impl<T: Copy> Store<T> for [T] {
 pub trait AtomicStore {
     /// Adds `v` to element `i` and returns the value before, atomically.
     fn atomic_add(&mut self, i: usize, v: u32) -> u32;
+    /// `atomic_add` where every caller adds to the same element `i` (a total that items take
+    /// ranges of slots from): each caller's value before its addition, as if the additions
+    /// came one at a time in some order. A GPU's store may add a subgroup's values in one
+    /// atomic addition (`Atomics` in the shader crate); by default, `atomic_add`.
+    #[inline(always)]
+    fn atomic_add_shared(&mut self, i: usize, v: u32) -> u32 {
+        self.atomic_add(i, v)
+    }
 }
 
 #[cfg(not(target_arch = "spirv"))]

@@ -251,6 +251,13 @@ impl WordFrame {
         let q = |a: usize| floor_u32((x[a] - self.min[a]) * self.inv[a] + 0.5).min(top);
         [q(0), q(1), q(2)]
     }
+    /// Where a photon at `x` lies in its word (`PhotonWord::of`): `position` of `encode(x)`,
+    /// without the word's other fields.
+    #[inline(always)]
+    pub fn snap(&self, x: [f32; 3]) -> [f32; 3] {
+        let q = self.encode(x);
+        self.position(UVec4::new(q[0], q[1], q[2], 0))
+    }
     /// The position of word `w`.
     #[inline(always)]
     pub fn position(&self, w: UVec4) -> [f32; 3] {
@@ -1051,8 +1058,7 @@ pub fn keys<I: PhotonIndex, K: Store<u32> + ?Sized, C: AtomicStore + ?Sized, S: 
         let key = if i < stored {
             // The cell of the photon's word (`place`), where a gather decodes it.
             let ph = &photons[i as usize];
-            let frame = WordFrame::new(p);
-            index.cell(frame.position(PhotonWord::of(ph, &frame).word), map_of(p, ph))
+            index.cell(WordFrame::new(p).snap(ph.position), map_of(p, ph))
         } else {
             NO_CELL
         };

@@ -253,13 +253,19 @@ impl Gpu {
     }
 
     /// Opens `adapter`, which is entry `index` of `adapters()`. Fails (`NoAdapter`) when it has no
-    /// SPIR-V passthrough or fewer than `MAX_PARAMS` bytes of push constants, or the device
-    /// cannot be opened.
+    /// SPIR-V passthrough, fewer than `MAX_PARAMS` bytes of push constants or no subgroup
+    /// operations, or the device cannot be opened.
     pub fn with_adapter(adapter: wgpu::Adapter, index: usize) -> Result<Gpu> {
         let info = adapter.get_info();
         let mut features = wgpu::Features::PASSTHROUGH_SHADERS | wgpu::Features::IMMEDIATES;
         if !adapter.features().contains(features) {
             bail!(NoAdapter: "GPU adapter {} does not accept SPIR-V passthrough shaders with push constants", describe(&info));
+        }
+        // The kernels use subgroup arithmetic and ballots (the photon index's sort); wgpu's
+        // flag for them asks for a little more (shuffles, quads), which every adapter that runs
+        // these kernels so far offers.
+        if !adapter.features().contains(wgpu::Features::SUBGROUP) {
+            bail!(NoAdapter: "GPU adapter {} does not offer subgroup operations in compute shaders", describe(&info));
         }
         let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
         if timestamps {

@@ -7,7 +7,7 @@
 //! differ (CI runs this; the build is deterministic and does not depend on the checkout's path).
 mod sources;
 
-use spirv_builder::{SpirvBuilder, SpirvMetadata};
+use spirv_builder::{Capability, SpirvBuilder, SpirvMetadata};
 use std::path::Path;
 use std::process::ExitCode;
 
@@ -37,6 +37,8 @@ fn run(check: bool) -> Result<bool, String> {
     let mut b = SpirvBuilder::new(shader, "spirv-unknown-vulkan1.2");
     // Keep the names of variables: the host matches its kernels' buffers to bindings by name.
     b.spirv_metadata = SpirvMetadata::NameVariables;
+    // Subgroup arithmetic and ballots (Vulkan 1.1: every device lists what it supports).
+    b.capabilities.extend([Capability::GroupNonUniform, Capability::GroupNonUniformArithmetic, Capability::GroupNonUniformBallot]);
     let result = b.build().map_err(|e| format!("the shader crate failed to compile to SPIR-V: {e}"))?;
     let built = result.module.unwrap_single();
     let module = std::fs::read(built).map_err(|e| format!("{}: {e}", built.display()))?;
