@@ -31,8 +31,9 @@ pub struct CountingSort<'r> {
     cells: u32,
     /// Items per cell; the count pass adds to them (zeroed again by the scatter).
     pub counts: Buffer<u32>,
-    /// Items per segment, added to like `counts`, then the total placed so far
-    /// (`sort::total_slot`); one unused word for exact offsets.
+    /// Per segment the keys it holds items of (added to by each key's first item, `sort::rank`)
+    /// and the mark of written offsets, then the total placed so far (`sort::total_slot`); one
+    /// unused word for exact offsets.
     pub segments: Buffer<u32>,
     /// Each counted item's rank among its cell's (as many as the sort's items).
     pub ranks: Buffer<u32>,

@@ -112,7 +112,9 @@ impl AtomicStore for Atomics<'_> {
     }
     /// One atomic addition per subgroup: the active lanes' values summed, each lane's value
     /// before it the sum of the lanes' below it (an exclusive scan) after the subgroup's base,
-    /// which the lowest active lane takes and hands on.
+    /// which the lowest active lane takes and hands on. The broadcast after the `if` assumes
+    /// the elected lane rejoins the others there, as every driver that has run it does (NVIDIA,
+    /// lavapipe); Vulkan promises it only with VK_KHR_shader_maximal_reconvergence.
     #[inline(always)]
     fn atomic_add_shared(&mut self, i: usize, v: u32) -> u32 {
         #[cfg(target_arch = "spirv")]

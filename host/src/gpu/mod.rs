@@ -233,7 +233,8 @@ impl Gpu {
     }
 
     /// Opens every adapter that can run the kernels (one runtime per device), best first;
-    /// adapters that cannot (no SPIR-V passthrough) are skipped with a warning.
+    /// adapters that cannot (no SPIR-V passthrough, push constants or subgroup operations) are
+    /// skipped with a warning.
     pub fn open_all() -> Result<Vec<Gpu>> {
         let list = adapters();
         if list.is_empty() {
@@ -261,9 +262,10 @@ impl Gpu {
         if !adapter.features().contains(features) {
             bail!(NoAdapter: "GPU adapter {} does not accept SPIR-V passthrough shaders with push constants", describe(&info));
         }
-        // The kernels use subgroup arithmetic and ballots (the photon index's sort); wgpu's
-        // flag for them asks for a little more (shuffles, quads), which every adapter that runs
-        // these kernels so far offers.
+        // The kernels use subgroup arithmetic and ballots (the photon index's sort). wgpu's flag
+        // asks for more: votes, shuffles and quads, in fragment shaders too, and Vulkan 1.3 or
+        // VK_EXT_subgroup_size_control; every adapter that has run these kernels (NVIDIA,
+        // lavapipe) offers it. Passthrough shaders need no feature enabled for them.
         if !adapter.features().contains(wgpu::Features::SUBGROUP) {
             bail!(NoAdapter: "GPU adapter {} does not offer subgroup operations in compute shaders", describe(&info));
         }
