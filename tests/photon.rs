@@ -424,7 +424,7 @@ fn photon_word_frames_are_powers_of_two_within_a_factor_two() {
 
 /// Every octahedral normal (all 2^16 codes) as a word's three bytes (`normal_bytes`): within
 /// 0.4° of the code's direction and of length 127 within 0.9 (the gather's fixed bound,
-/// `photon::facing`, rests on it), the bytes in range and the z byte clear of the padding bit,
+/// `photon::facing`, rests on it), the bytes in range and never the padding word's (a zero normal),
 /// and the word's normal (`PhotonWord::normal`) that direction. And the integer square root
 /// the bytes are scaled by, against `f64`.
 #[test]
@@ -437,7 +437,7 @@ fn photon_word_normals_are_the_octahedral_normals_within_a_degree() {
         assert!(b.iter().all(|&v| v < 256), "code {oct:#x}: bytes {b:?}");
         let ph = Photon { position: [0.5; 3], packed: oct, ..Default::default() };
         let w = PhotonWord::of(&ph, &frame);
-        assert!(!kdray_shared::photon::is_padding(w.word), "code {oct:#x}: a normal sets the padding bit");
+        assert!(!kdray_shared::photon::is_padding(w.word), "code {oct:#x}: a normal reads as padding");
         let dot = Vec3::from(w.normal()).dot(Vec3::from(n));
         worst = worst.min(dot);
         assert!(dot >= (0.4f32).to_radians().cos() - 1e-6, "code {oct:#x}: {:?} against {n:?}", w.normal());
