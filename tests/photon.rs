@@ -159,18 +159,18 @@ fn check_index(map: &PhotonMap, tree: &KdTreeData, records: &[Photon], what: &st
             let tolerance = half_steps * step + origin_error + encode_error + (q[a].abs() as f64) * f32::EPSILON as f64;
             assert!(((q[a] - r.position[a]) as f64).abs() <= tolerance, "{what}: word at {q:?} for a photon at {:?}", r.position);
         }
-        assert_eq!(w.power(), r.power(), "{what}: a word's power is not its photon's");
+        // The word's power: its photon's, rounded to a mantissa of 6 bits (red, green) or 5
+        // (blue) up or down (`word_power`: every power lies within its range here).
+        let (wp, rp) = (w.power(&frame), r.power());
+        for c in 0..3 {
+            let ulp = if c == 2 { 1.0 / 32.0 } else { 1.0 / 64.0 };
+            assert!((wp[c] - rp[c]).abs() <= rp[c] * ulp, "{what}: a word's power {wp:?} is not its photon's {rp:?}");
+        }
         // The word's normal: its photon's octahedral normal in whole numbers (`normal_bytes`:
         // at most 0.4° off).
         let dot = Vec3::from(w.normal()).dot(Vec3::from(r.normal()));
         assert!(dot >= 0.9999, "{what}: a word's normal is not its photon's ({:?} vs {:?})", w.normal(), r.normal());
         of_word.entry(w).or_default().push(if p.maps > 1 && r.is_caustic() { 1 } else { 0 });
-    }
-    // The word that pads a gather step counts nowhere, not even at its own coordinates.
-    for n in [[0.0, 0.0, -1.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, -1.0, 0.0]] {
-        let pad = kdray_shared::photon::PADDING;
-        let disc = kdray_shared::photon::Disc::new(&p, frame.position(pad), n, p.radius[0]);
-        assert!(!disc.test(pad).0, "{what}: the padding word counts in a gather");
     }
     let mut a: Vec<_> = records.iter().map(|r| PhotonWord::of(r, &frame).word.to_array()).collect();
     let mut b: Vec<_> = sorted.iter().map(|w| w.word.to_array()).collect();
@@ -240,10 +240,10 @@ fn check_index(map: &PhotonMap, tree: &KdTreeData, records: &[Photon], what: &st
             if d.length_squared() > r * r {
                 continue;
             }
-            if kdray_shared::photon::facing(q.word, n) {
+            if kdray_shared::photon::facing(q.word, kdray_shared::photon::normal_units(n)) {
                 count += 1;
                 for c in 0..3 {
-                    want[c] += q.power()[c] as f64;
+                    want[c] += q.power(&frame)[c] as f64;
                 }
             }
         }
@@ -315,7 +315,7 @@ fn gathers_find_what_brute_force_counts_at_radii_of_a_few_word_steps() {
     let mut accepted_behind = 0;
     for (min, max) in [([0.0f32; 3], [1000.0f32; 3]), ([1.5e5, 1e3, -2.2e5], [1.5e5 + 20.0, 1e3 + 20.0, -2.2e5 + 20.0]), ([-3.0, -1.0, -2.0], [4.0, 2.5, 1.0])] {
         for grid in [0, 2, 3, 5, 7, 9] {
-            let base = kdray_shared::IndexParams { maps: 1, filter: kdray_shared::FILTER_CONSTANT, bounds_min: min, bounds_max: max, ..Default::default() };
+            let base = kdray_shared::IndexParams { maps: 1, filter: kdray_shared::FILTER_CONSTANT, bounds_min: min, bounds_max: max, power_top: 2, ..Default::default() };
             let frame = WordFrame::new(&base);
             let step = frame.step[0].max(frame.step[1]).max(frame.step[2]);
             for r in [1.5 * step, 4.0 * step, 40.0 * step] {
@@ -394,6 +394,84 @@ fn gathers_find_what_brute_force_counts_at_radii_of_a_few_word_steps() {
     assert!(accepted_behind > 0, "no photon behind a boundary counted: the cases miss what they test");
 }
 
+/// A photon word's power (`word_power`), from its record's RGB9E5: within its range each
+/// channel rounded to 6 (red, green) or 5 (blue) bits of mantissa, up or down, and exactly
+/// right on average over the dither (all 8^3 patterns of the bits it reads) up to the largest
+/// value (above it, rounding up is clamped); below the range
+/// dithered to 0 or the smallest value, right on average within the sampling error; above it
+/// the largest; zero stays zero. Its floats (`power_floats`) are normal (GPUs may flush
+/// subnormals) and times `power_scale` give the decoded power exactly, for every `power_top`.
+#[test]
+fn photon_word_powers_are_unbiased_over_their_dither() {
+    use kdray_shared::photon::{power_floats, power_scale, word_power, POWER_TOP};
+    let decode = |v: u32, top: i32| -> [f64; 3] {
+        let f = power_floats(v);
+        let s = power_scale(top);
+        for x in f {
+            assert!(x == 0.0 || x.is_normal(), "{v:#x}: a subnormal channel {x}");
+        }
+        let p = [f[0] * s, f[1] * s, f[2] * s];
+        for c in 0..3 {
+            assert_eq!(p[c] as f64, f[c] as f64 * s as f64, "{v:#x}: the scale's product is not exact");
+        }
+        p.map(|x| x as f64)
+    };
+    // RGB9E5 of three channels' mantissas and a shared exponent.
+    let rgb9e5 = |m: [u32; 3], e: u32| m[0] | m[1] << 9 | m[2] << 18 | e << 27;
+    let value = |m: u32, e: u32| m as f64 * 2f64.powi(e as i32 - 24);
+    let patterns: Vec<u32> = (0..512u32).map(|k| (k & 7) | ((k >> 3) & 7) << 8 | (k >> 6) << 16).collect();
+    let mut seed = 0x2545_f491_4f6c_dd1du64;
+    let mut rand = move || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed >> 32) as u32
+    };
+    let mut below = 0;
+    for top in [POWER_TOP[0], -20, 0, 3, POWER_TOP[1]] {
+        for trial in 0..400 {
+            let m = [rand() % 512, rand() % 512, if trial % 7 == 0 { 0 } else { rand() % 512 }];
+            let e = rand() % 32;
+            let v = rgb9e5(m, e);
+            let want = [value(m[0], e), value(m[1], e), value(m[2], e)];
+            let (lo, hi) = (2f64.powi(top - 31), 2f64.powi(top));
+            let mut mean = [0.0f64; 3];
+            for &h in &patterns {
+                let got = decode(word_power(v, top, h), top);
+                for c in 0..3 {
+                    let ulp = if c == 2 { 1.0 / 32.0 } else { 1.0 / 64.0 };
+                    if want[c] == 0.0 {
+                        assert_eq!(got[c], 0.0, "top {top}: zero became {}", got[c]);
+                    } else if want[c] >= hi {
+                        assert_eq!(got[c], hi * (1.0 - ulp / 2.0), "top {top}: {} not clamped to the largest", want[c]);
+                    } else if want[c] >= lo {
+                        assert!((got[c] - want[c]).abs() < want[c] * ulp, "top {top}: {} rounded to {}", want[c], got[c]);
+                    } else {
+                        assert!(got[c] == 0.0 || got[c] == lo, "top {top}: {} below the range became {}", want[c], got[c]);
+                    }
+                    mean[c] += got[c] / patterns.len() as f64;
+                }
+            }
+            for c in 0..3 {
+                let ulp = if c == 2 { 1.0 / 32.0 } else { 1.0 / 64.0 };
+                if want[c] >= lo && want[c] <= hi * (1.0 - ulp / 2.0) {
+                    assert!((mean[c] - want[c]).abs() <= want[c] * 1e-12, "top {top}: {} averages {} over the dither", want[c], mean[c]);
+                } else if want[c] > 0.0 && want[c] < lo && want[c] > lo / 8.0 {
+                    // Below the range: the smallest value with probability want / lo, over
+                    // random hashes (the dither's second draw).
+                    below += 1;
+                    let n = 20_000;
+                    let hits = (0..n).filter(|_| decode(word_power(v, top, rand()), top)[c] > 0.0).count() as f64;
+                    let q = want[c] / lo;
+                    let sigma = (q * (1.0 - q) / n as f64).sqrt();
+                    assert!((hits / n as f64 - q).abs() <= 5.0 * sigma + 1e-9, "top {top}: {} below the range kept {} of the time, not {q}", want[c], hits / n as f64);
+                }
+            }
+        }
+    }
+    assert!(below > 20, "only {below} channels below a range: the cases miss what they test");
+}
+
 /// The photon words' frame (`WordFrame`): steps of a power of two, fewer than 2^23 of them
 /// across the box and at most twice the fewest, exact reciprocals, whatever the extent — a
 /// power of two (where a division would round to either side), tiny, huge, or none.
@@ -424,27 +502,48 @@ fn photon_word_frames_are_powers_of_two_within_a_factor_two() {
 
 /// Every octahedral normal (all 2^16 codes) as a word's three bytes (`normal_bytes`): within
 /// 0.4° of the code's direction and of length 127 within 0.9 (the gather's fixed bound,
-/// `photon::facing`, rests on it), the bytes in range and never the padding word's (a zero normal),
-/// and the word's normal (`PhotonWord::normal`) that direction. And the integer square root
-/// the bytes are scaled by, against `f64`.
+/// `photon::facing`, rests on it), the bytes in range and never all zero,
+/// and the word's normal (`PhotonWord::normal`) that direction; `facing` (integers) true for
+/// directions within 59° of the code's, false beyond 61°. And the integer square root the
+/// bytes are scaled by, against `f64`.
 #[test]
 fn photon_word_normals_are_the_octahedral_normals_within_a_degree() {
     let frame = WordFrame::new(&kdray_shared::IndexParams { bounds_max: [1.0; 3], ..Default::default() });
     let mut worst = 1.0f32;
+    let mut rng = kdray_shared::rng::Rng::new(9, 2);
+    let mut near = [0usize; 2];
     for oct in 0..1u32 << 16 {
         let n = kdray_shared::photon::decode_oct(oct, 8);
         let b = kdray_shared::photon::normal_bytes(oct);
         assert!(b.iter().all(|&v| v < 256), "code {oct:#x}: bytes {b:?}");
         let ph = Photon { position: [0.5; 3], packed: oct, ..Default::default() };
         let w = PhotonWord::of(&ph, &frame);
-        assert!(!kdray_shared::photon::is_padding(w.word), "code {oct:#x}: a normal reads as padding");
+        assert!(b != [0; 3], "code {oct:#x}: a zero normal");
         let dot = Vec3::from(w.normal()).dot(Vec3::from(n));
         worst = worst.min(dot);
         assert!(dot >= (0.4f32).to_radians().cos() - 1e-6, "code {oct:#x}: {:?} against {n:?}", w.normal());
-        let len = b.iter().map(|&v| (v as f64 - 128.0).powi(2)).sum::<f64>().sqrt();
+        let len = b.iter().map(|&v| (v as u8 as i8 as f64).powi(2)).sum::<f64>().sqrt();
+        // Directions at angles from the code's near 60° (a random axis of rotation).
+        for _ in 0..4 {
+            let angle = (55.0 + 10.0 * rng.next_f32()).to_radians();
+            let a = Vec3::from(n).any_orthonormal_vector();
+            let b2 = Vec3::from(n).cross(a);
+            let phi = 6.283_185_3 * rng.next_f32();
+            let d = Vec3::from(n) * angle.cos() + (a * phi.cos() + b2 * phi.sin()) * angle.sin();
+            let f = kdray_shared::photon::facing(w.word, kdray_shared::photon::normal_units(d.normalize().to_array()));
+            let deg = angle.to_degrees();
+            if deg < 59.0 {
+                assert!(f, "code {oct:#x}: a direction {deg}° away does not face it");
+                near[0] += (deg > 58.0) as usize;
+            } else if deg > 61.0 {
+                assert!(!f, "code {oct:#x}: a direction {deg}° away faces it");
+                near[1] += (deg < 62.0) as usize;
+            }
+        }
         assert!((len - kdray_shared::photon::NORMAL_LENGTH as f64).abs() <= 0.9, "code {oct:#x}: bytes {b:?} of length {len}");
     }
     assert!(worst < 0.99999, "no code was rounded at all ({worst}): the test would not see a wrong rounding");
+    assert!(near[0] > 1000 && near[1] > 1000, "too few directions near the bound: {near:?}");
     let mut rng = kdray_shared::rng::Rng::new(5, 1);
     for k in (0..1u32 << 20).chain((0..100_000).map(|_| rng.next_u32())).chain([u32::MAX, u32::MAX - 1, 1 << 30, (1 << 30) - 1, 65535 * 65535, 65536 * 65535]) {
         let want = (k as f64).sqrt().floor() as u32;

@@ -172,18 +172,12 @@ impl Photon {
 /// Bits of a photon word's coordinates: each axis of the scene box in fewer than 2^23 steps of
 /// a power of two, at most twice as coarse as `f32`'s spacing at the box's far corner.
 pub const WORD_BITS: u32 = 23;
-/// The normal byte of a zero component (`normal_bytes`).
-const ZERO_BYTE: u32 = 128;
-/// The word that pads a gather step (`CellVisitor::word`): no power and a zero normal, which
-/// faces nowhere (`facing`: its dot product with any normal is 0), so no test counts it and
-/// the step needs no test of its own; no photon has it (a photon's normal is about 127 long).
-pub const PADDING: UVec4 = UVec4::new(ZERO_BYTE << 24, ZERO_BYTE << 24, ZERO_BYTE << 24, 0);
 /// 2^23: `biased(m)` is 2^23 + m.
 const TWO_23: f32 = 8_388_608.0;
 
 /// 2^23 + `m` for `m` < 2^23, exactly, by setting the bits of `m` under the exponent of 2^23: a
 /// bitwise or instead of an integer-to-float conversion, which GPUs run at a fraction of the
-/// rate of float arithmetic (the gather converts eight fields of every photon it tests). The
+/// rate of float arithmetic (the gather's distance test converts three fields of every photon it tests). The
 /// bias cancels in a multiply-add by a power of two s in [2^-126, 2^103]: `biased(m) · s` is
 /// exact, so `fma(biased(m), s, c)` is the same fused or not (Vulkan lets a driver split an
 /// `fma`).
@@ -195,7 +189,8 @@ fn biased(m: u32) -> f32 {
 /// A photon of the index (cell order) as the gather reads it: everything a gather needs in one
 /// 16-byte word, loaded in one vector access — its position in fixed point over the scene box
 /// (`WordFrame`, 23 bits an axis), its normal (`Photon::packed`'s octahedral normal unfolded
-/// into a vector of whole numbers, three bytes: `normal_bytes`) and its power (RGB9E5).
+/// into a vector of whole numbers, three bytes: `normal_bytes`) and its power (`word_power`:
+/// a float per channel, dithered from the record's RGB9E5).
 ///
 /// Bits: `x` = qx | the normal's x byte << 24; `y` = qy | its y byte << 24; `z` = qz | its z
 /// byte << 24; `w` = power. (With the z byte at bit 23 and a padding bit of its own, the
@@ -221,6 +216,8 @@ pub struct WordFrame {
     pub inv: [f32; 3],
     /// `min` − 2^23 · `step`: the decoding's offset (`biased`).
     pub origin: [f32; 3],
+    /// The power range (`IndexParams::power_top`, clamped to `POWER_TOP`).
+    pub power_top: i32,
 }
 
 impl WordFrame {
@@ -244,7 +241,7 @@ impl WordFrame {
         let inv_of = |b: u32| if b == 0 { 0.0 } else { f32::from_bits(0x7f00_0000 - b) };
         let inv = [inv_of(b[0]), inv_of(b[1]), inv_of(b[2])];
         let o = |a: usize| p.bounds_min[a] - TWO_23 * step[a];
-        WordFrame { min: p.bounds_min, step, inv, origin: [o(0), o(1), o(2)] }
+        WordFrame { min: p.bounds_min, step, inv, origin: [o(0), o(1), o(2)], power_top: p.power_top.clamp(POWER_TOP[0], POWER_TOP[1]) }
     }
     /// The nearest coordinates of a point (clamped to the box).
     #[inline(always)]
@@ -288,7 +285,10 @@ impl PhotonWord {
     pub fn of(ph: &Photon, frame: &WordFrame) -> PhotonWord {
         let q = frame.encode(ph.position);
         let n = normal_bytes(ph.packed & 0xffff);
-        PhotonWord { word: UVec4::new(q[0] | n[0] << 24, q[1] | n[1] << 24, q[2] | n[2] << 24, ph.power) }
+        // The power's dither: a hash of the record (every runtime draws the same).
+        let b = |x: f32| x.to_bits();
+        let h = pcg_hash(b(ph.position[0]) ^ pcg_hash(b(ph.position[1]) ^ pcg_hash(b(ph.position[2]) ^ pcg_hash(ph.packed ^ ph.power))));
+        PhotonWord { word: UVec4::new(q[0] | n[0] << 24, q[1] | n[1] << 24, q[2] | n[2] << 24, word_power(ph.power, frame.power_top, h)) }
     }
     /// Where the photon landed, to a step of `frame`.
     #[inline(always)]
@@ -299,13 +299,100 @@ impl PhotonWord {
     /// normalised).
     #[inline(always)]
     pub fn normal(&self) -> [f32; 3] {
-        normalize3(word_normal(self.word))
+        let m = word_normal(self.word);
+        normalize3([m[0] as f32, m[1] as f32, m[2] as f32])
     }
-    /// The photon's power (RGB).
+    /// The photon's power (RGB, `word_power`) in `frame`.
     #[inline(always)]
-    pub fn power(&self) -> [f32; 3] {
-        decode_rgb9e5(self.word.w)
+    pub fn power(&self, frame: &WordFrame) -> [f32; 3] {
+        scale3(power_floats(self.word.w), power_scale(frame.power_top))
     }
+}
+
+/// The range of `IndexParams::power_top` (clamped): its powers of two stay normal floats, and
+/// `power_scale` times a filter's weight (at most 3) finite. (Records' powers, RGB9E5, lie
+/// below 2^16.)
+pub const POWER_TOP: [i32; 2] = [-60, 17];
+/// Mantissa bits of a word's power channels (red, green, blue; `word_power`).
+const POWER_MANTISSA: [u32; 3] = [6, 6, 5];
+/// Where each channel's 5 + mantissa bits start in a word's power.
+const POWER_SHIFT: [u32; 3] = [0, 11, 22];
+
+/// A photon word's power (`PhotonWord`'s `w`) from its record's RGB9E5 power `rgb9e5`, by
+/// integer arithmetic alone (every runtime writes the same bits): each channel a float of its
+/// own, a 5-bit exponent E and a mantissa M of f = 6 (red, green) or 5 (blue) bits, holding
+/// 2^(E − 32 + top)·(1 + M/2^f) for E in 1..=31 (E = M = 0: zero), top = `power_top`
+/// (clamped to `POWER_TOP`). Its bits, placed in an `f32`'s exponent and mantissa
+/// (`power_floats`: a shift and a mask), read as 2^(E − 127)·(1 + M/2^f), a normal float,
+/// and one multiplication by `power_scale` makes that the power: the gather decodes a
+/// channel in three operations (the shared exponent of RGB9E5 took about twice as many; a
+/// decode of that cost took 7–11 % off the gather at ~50 photons a point, H100,
+/// docs/gpu-runs/2026-12-06-gather-ablations-h100.md).
+///
+/// Rounding is dithered by the bits of `h` (a hash): over uniform `h` a channel's expectation
+/// is its value exactly, so a pass's photons, which mostly share their power, add up to their
+/// power however coarse the mantissa. Below the range (2^(top − 31)) a channel becomes the
+/// smallest value with probability value / smallest, else 0 (unbiased too, down to 2^-25 of
+/// the smallest); above the largest value, 2^top·(1 − 2^-(f + 1)), it is clamped to that
+/// (the host sets `top` two binades above every photon's power: `IndexParams::power_top`).
+#[inline(always)]
+pub fn word_power(rgb9e5: u32, power_top: i32, h: u32) -> u32 {
+    let top = power_top.clamp(POWER_TOP[0], POWER_TOP[1]);
+    let s = (rgb9e5 >> 27) as i32;
+    let mut out = 0u32;
+    let mut c = 0usize;
+    while c < 3 {
+        let m = (rgb9e5 >> (9 * c as u32)) & 511;
+        let f = POWER_MANTISSA[c];
+        if m != 0 {
+            // m · 2^(s − 24) = (m / 2^p) · 2^(p + s − 24), m in [2^p, 2^(p + 1)).
+            let p = 31 - m.leading_zeros();
+            let mut e = p as i32 + s - 24 + 32 - top;
+            // f bits after the leading one: p − f bits dropped (at most 3), rounded up with
+            // probability their fraction (8 dither bits of h a channel).
+            let mut mm = if p > f {
+                let k = p - f;
+                (m + ((h >> (8 * c as u32)) & ((1 << k) - 1))) >> k
+            } else {
+                m << (f - p)
+            };
+            if mm >> (f + 1) != 0 {
+                mm >>= 1;
+                e += 1;
+            }
+            let bits = if e > 31 {
+                (31 << f) | ((1 << f) - 1)
+            } else if e >= 1 {
+                ((e as u32) << f) | (mm - (1 << f))
+            } else {
+                // The smallest value (E = 1, M = 0) with probability mm / 2^(f + 1 − e).
+                let k = f as i32 + 1 - e;
+                let u = pcg_hash(h ^ (0x9E37_79B9u32.wrapping_mul(c as u32 + 1)));
+                if k < 32 && (u & ((1u32 << k) - 1)) < mm {
+                    1 << f
+                } else {
+                    0
+                }
+            };
+            out |= bits << POWER_SHIFT[c];
+        }
+        c += 1;
+    }
+    out
+}
+
+/// The three `f32`s the bits of a word's power read as (`word_power`): each channel's power
+/// divided by `power_scale`, exactly. A shift and a mask each.
+#[inline(always)]
+pub fn power_floats(v: u32) -> [f32; 3] {
+    [f32::from_bits((v << 17) & 0x0ffe_0000), f32::from_bits((v << 6) & 0x0ffe_0000), f32::from_bits((v >> 4) & 0x0ffc_0000)]
+}
+
+/// What `power_floats` are multiplied by for the powers: 2^(95 + top), top = `power_top`
+/// clamped to `POWER_TOP` (then within [2^35, 2^112]; the products are exact).
+#[inline(always)]
+pub fn power_scale(power_top: i32) -> f32 {
+    exp2i(95 + power_top.clamp(POWER_TOP[0], POWER_TOP[1]))
 }
 
 /// The length of the normal vectors of photon words (`normal_bytes`), to within 0.9.
@@ -313,7 +400,7 @@ pub const NORMAL_LENGTH: f32 = 127.0;
 
 /// An octahedral normal of 2 × 8 bits (`encode_oct`) as the three bytes a photon word holds:
 /// the direction as a vector of length `NORMAL_LENGTH` in whole numbers (each in −127..=127),
-/// stored plus 128. By integer arithmetic alone, so every runtime writes the same bytes:
+/// stored in two's complement (so an arithmetic shift reads one). By integer arithmetic alone, so every runtime writes the same bytes:
 /// `oct_vector` × 255 (unfolded on the lower half), its length by an integer square root
 /// (× 16), each component scaled by 127 over it in a rounded division. Each component is off
 /// by at most 1/2 (and the length by 1/16 of a unit), so the direction is within 0.4° of the
@@ -335,21 +422,29 @@ pub fn normal_bytes(oct: u32) -> [u32; 3] {
     let byte = |c: i32| {
         let q = (c.unsigned_abs() * (2 * 127 * 16) + l) / (2 * l);
         if c < 0 {
-            128 - q
+            (256 - q) & 255
         } else {
-            128 + q
+            q
         }
     };
     [byte(x), byte(y), byte(z)]
 }
 
 /// The normal vector of a word's bytes (`normal_bytes`), in whole numbers (−127..=127, of
-/// length `NORMAL_LENGTH` within 0.9; exact on any runtime: `biased` and one exact
-/// subtraction, no conversions).
+/// length `NORMAL_LENGTH` within 0.9): an arithmetic shift each.
 #[inline(always)]
-fn word_normal(w: UVec4) -> [f32; 3] {
-    const BIAS: f32 = TWO_23 + 128.0;
-    [biased(w.x >> 24) - BIAS, biased(w.y >> 24) - BIAS, biased(w.z >> 24) - BIAS]
+pub fn word_normal(w: UVec4) -> [i32; 3] {
+    [(w.x as i32) >> 24, (w.y as i32) >> 24, (w.z as i32) >> 24]
+}
+
+/// A unit vector in whole numbers for `facing`: × 2^15, rounded (each within 1/2).
+#[inline(always)]
+pub fn normal_units(n: [f32; 3]) -> [i32; 3] {
+    let r = |v: f32| {
+        let v = v * 32768.0;
+        (if v >= 0.0 { v + 0.5 } else { v - 0.5 }) as i32
+    };
+    [r(n[0]), r(n[1]), r(n[2])]
 }
 
 /// The index's photons in cell order: cell c's are `offsets[s]..offsets[s + 1]` of `words`,
@@ -598,23 +693,16 @@ pub fn trace_photons<M: Method, O: Store<Photon> + ?Sized, C: AtomicStore + ?Siz
 /// (The photons are passed along rather than held: a mutable visitor holding storage buffer
 /// slices crashed NVIDIA's SPIR-V compiler, driver 580.)
 pub trait CellVisitor {
-    /// Visits photon `j` of `sorted`, whose word (`PhotonWord`) is `w` — or pads the grid's
-    /// step (`GRID_STEP` photons) past a run's end: then `w` is `PADDING` (`is_padding`; no
-    /// `Disc::test` counts it) and `j` the run's last photon.
-    fn word(&mut self, w: UVec4, j: u32, sorted: &SortedPhotons);
+    /// Visits a photon of `sorted` whose word (`PhotonWord`) is `w` if `real` — else pads the
+    /// grid's step (`GRID_STEP` photons) past a run's end (`w` is then the run's last photon
+    /// again, not to be counted).
+    fn word(&mut self, w: UVec4, real: bool, sorted: &SortedPhotons);
 }
 
 /// Photons a step of the grid's gather loads and visits (`HashGrid::visit`), padding included.
 pub const GRID_STEP: u32 = 4;
 // `HashGrid::visit`'s step is written out for four photons.
 const _: () = assert!(GRID_STEP == 4);
-
-/// Whether a word passed to `CellVisitor::word` pads a step (`PADDING`: its zero normal), not a
-/// photon.
-#[inline(always)]
-pub fn is_padding(w: UVec4) -> bool {
-    (w.x >> 24) == ZERO_BYTE && (w.y >> 24) == ZERO_BYTE && (w.z >> 24) == ZERO_BYTE
-}
 
 impl SortedPhotons<'_> {
     /// The photons of a run of cells whose offsets are at `first..end` (`offset_slot`): from
@@ -641,7 +729,7 @@ impl SortedPhotons<'_> {
         let (mut j, b) = self.run(first, end);
         while j < b {
             // SAFETY: j < b, and `run` clamps b to the words held.
-            v.word(unsafe { self.word(j) }, j, self);
+            v.word(unsafe { self.word(j) }, true, self);
             j += 1;
         }
     }
@@ -882,22 +970,22 @@ impl PhotonIndex for HashGrid {
                 next += 1;
             }
             // Four photons a step: all four loads are issued before any is tested. The places
-            // past a run's end are `PADDING` (counted by no test): no separate step for a run's
-            // last one to three photons, which the other lanes waited on. (Two a step was 8–11 %
-            // slower on the H100 at ~50 photons found a point, the conference room the same.)
+            // past a run's end load the run's last photon again and pass it as not real (not
+            // counted): no separate step for a run's last one to three photons, which the other
+            // lanes waited on. (Two a step was 8–11 % slower on the H100 at ~50 photons found a
+            // point, the conference room the same. A padding word selected in their place, four
+            // selections each, rejected by its zero normal: the gather 4–5 % slower, H100,
+            // docs/gpu-runs/2026-12-06-power-format-h100.md.)
             let j1 = (j + 1).min(b - 1);
             let j2 = (j + 2).min(b - 1);
             let j3 = (j + 3).min(b - 1);
             // SAFETY: j ≤ j1 ≤ j2 ≤ j3 < b (a kept run is not empty), and `run` clamps b to the
             // words held.
             let (w0, w1, w2, w3) = unsafe { (sorted.word(j), sorted.word(j1), sorted.word(j2), sorted.word(j3)) };
-            let w1 = if j1 > j { w1 } else { PADDING };
-            let w2 = if j2 > j1 { w2 } else { PADDING };
-            let w3 = if j3 > j2 { w3 } else { PADDING };
-            v.word(w0, j, sorted);
-            v.word(w1, j1, sorted);
-            v.word(w2, j2, sorted);
-            v.word(w3, j3, sorted);
+            v.word(w0, true, sorted);
+            v.word(w1, j1 > j, sorted);
+            v.word(w2, j2 > j1, sorted);
+            v.word(w3, j3 > j2, sorted);
             j = (j + GRID_STEP).min(b);
         }
     }
@@ -1135,6 +1223,10 @@ pub struct Disc {
     pub r2: f32,
     /// `frame.base(x)`.
     pub base: [f32; 3],
+    /// `power_scale(frame.power_top)`: what a word's `power_floats` are multiplied by.
+    pub power_scale: f32,
+    /// `normal_units(n)`.
+    pub units: [i32; 3],
 }
 
 impl Disc {
@@ -1142,31 +1234,37 @@ impl Disc {
     #[inline(always)]
     pub fn new(p: &IndexParams, x: [f32; 3], n: [f32; 3], r: f32) -> Disc {
         let frame = WordFrame::new(p);
-        Disc { frame, x, n, r2: r * r, base: frame.base(x) }
+        Disc { frame, x, n, r2: r * r, base: frame.base(x), power_scale: power_scale(frame.power_top), units: normal_units(n) }
     }
 
     /// Whether the photon of word `w` counts: within the radius, its surface's normal within 60°
-    /// of `n` (photons on the back side or of another orientation never count; `facing`), not
-    /// `PADDING`. Also its distance² (the filters' argument).
+    /// of `n` (photons on the back side or of another orientation never count; `facing`). Also
+    /// its distance² (the filters' argument).
     #[inline(always)]
     pub fn test(&self, w: UVec4) -> (bool, f32) {
         let d = self.frame.offset(w, self.base);
         let d2 = dot3(d, d);
         // No branches: a subgroup's lanes pay for every side of one.
-        // `PADDING` faces nowhere.
-        ((d2 <= self.r2) & facing(w, self.n), d2)
+        ((d2 <= self.r2) & facing(w, self.units), d2)
     }
 }
 
-/// Whether the normal of word `w` lies within 60° of the unit vector `n`: m · n > 127/2 for
-/// its vector m (`word_normal`, of length 127 within 0.9: cos > 0.5 within 0.7 %, 0.25° at
-/// 60°). One dot product against a fixed bound, no square root or division: the test runs for
-/// every photon a gather visits. Against m's own length instead (4 (m·n)² > |m|², m·n > 0),
-/// with a test of the filter at every photon too, the gather took 12–19 % longer (H100,
-/// 2026-12-05; the filter's test alone 8–13 %: `irradiance`).
+/// Whether the normal of word `w` lies within 60° of the unit vector n whose `normal_units`
+/// are `units`: m · n > 127/2 for its vector m (`word_normal`, of length 127 within 0.9: cos >
+/// 0.5 within 0.7 %, 0.25° at 60°), in whole numbers, m · units > 127 · 2^14 (n's units within
+/// 1/2 of n · 2^15: the bound within 2^-15 relative), exact on every runtime. One dot product
+/// against a fixed bound, no square root or division: the test runs for every photon a gather
+/// visits. Against m's own length instead (4 (m·n)² > |m|², m·n > 0), with a test of the
+/// filter at every photon too, the gather took 12–19 % longer (H100, 2026-12-05; the filter's
+/// test alone 8–13 %: `irradiance`). In integers (an arithmetic shift and a multiply-add a
+/// component) rather than floats (a shift, an or and a subtraction to make the component a
+/// float, then a multiply-add) the gather took 1–5 % less time, in tiles at ~50 photons a
+/// point (H100, docs/gpu-runs/2026-12-06-power-format-h100.md).
 #[inline(always)]
-pub fn facing(w: UVec4, n: [f32; 3]) -> bool {
-    dot3(word_normal(w), n) > 0.5 * NORMAL_LENGTH
+pub fn facing(w: UVec4, units: [i32; 3]) -> bool {
+    let m = word_normal(w);
+    // |m · units| ≤ 127 · 32768 · √3 · (1 + 2^-15): no overflow.
+    m[0] * units[0] + m[1] * units[1] + m[2] * units[2] > 127 * 16384
 }
 
 /// Sums the photons of visited cells within a disc, weighted by the filter (`FILTER_*`;
@@ -1181,11 +1279,13 @@ struct Sum<const CONSTANT: bool> {
 impl<const CONSTANT: bool> CellVisitor for Sum<CONSTANT> {
     /// One 16-byte word a photon: its place, normal and power.
     #[inline(always)]
-    fn word(&mut self, w: UVec4, _j: u32, _sorted: &SortedPhotons) {
+    fn word(&mut self, w: UVec4, real: bool, _sorted: &SortedPhotons) {
         // Branch-free: every photon's power is added, weighted 0 outside the disc (a branch
         // made the lanes of a subgroup that counted nothing wait for those that did: 10 % of
         // the gather on the H200).
         let (counts, d2) = self.disc.test(w);
+        // A step's padding (`HashGrid::visit`) counts nowhere.
+        let counts = counts & real;
         // Natively a branch is cheaper than the work it skips (most visited photons lie
         // outside the disc; adding their zeros instead leaves the same sum): the native
         // Cornell box render, 16 passes at 512², 15.3 → 11.9 s on 2 cores, the same image.
@@ -1203,20 +1303,16 @@ impl<const CONSTANT: bool> CellVisitor for Sum<CONSTANT> {
         } else {
             1.0
         };
-        // The power (RGB9E5, `decode_rgb9e5`): each mantissa m by `biased`, m · 2^(e − 24) in
-        // one multiply-add by a power of two (exact), times the filter's weight k (0 outside
-        // the disc). Keep the multiplication by k between that multiply-add and the sum's add:
-        // with k folded into the power of two instead, lavapipe summed differently in two
-        // builds of the kernel (an add moved into the multiply-add, where −2^23 · 2^(e − 24)
-        // swamps the sum; docs/gpu-runs/2026-12-04-photon-words-h200.md). Zeroing the power of
-        // two instead of the weight, with the mantissas made exact floats first (an operation
-        // fewer a channel), was not faster (H100, 2026-12-05: measured together with the
-        // chord's cells from x's place in cells, 0–4 % slower).
-        let v = w.w;
-        let s = exp2i((v >> 27) as i32 - 24);
-        let c = -TWO_23 * s;
-        let rgb = [fma(biased(v & 511), s, c), fma(biased((v >> 9) & 511), s, c), fma(biased((v >> 18) & 511), s, c)];
-        self.sum = add3(self.sum, scale3(rgb, if counts { k } else { 0.0 }));
+        // The power (`word_power`): each channel's float (`power_floats`) times the scale, a
+        // power of two (exact, so fused or not, the sum's addition rounds once), times the
+        // filter's weight k (0 outside the disc).
+        let f = power_floats(w.w);
+        if CONSTANT {
+            let ks = if counts { self.disc.power_scale } else { 0.0 };
+            self.sum = [fma(f[0], ks, self.sum[0]), fma(f[1], ks, self.sum[1]), fma(f[2], ks, self.sum[2])];
+        } else {
+            self.sum = add3(self.sum, scale3(scale3(f, self.disc.power_scale), if counts { k } else { 0.0 }));
+        }
         self.found += counts as u32;
     }
 }

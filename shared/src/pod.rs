@@ -476,6 +476,13 @@ pub struct IndexParams {
     pub bounds_max: [f32; 3],
     /// `GATHER_*` bits.
     pub gather_flags: u32,
+    /// The photon words' power range (`photon::word_power`): powers below 2^`power_top` (and
+    /// down to 2^(`power_top` − 31)) are held with 6 or 5 bits of mantissa a channel, smaller
+    /// ones are dithered to 0 or the smallest. Clamped to `photon::POWER_TOP` (default 0:
+    /// powers below 1). The host sets it from the lights' power per emitted photon.
+    pub power_top: i32,
+    /// Padding to a 16-byte multiple.
+    pub _pad: [u32; 3],
 }
 
 /// `IndexParams::gather_flags`: final gathering near edges only. A gather point marked

@@ -30,7 +30,7 @@ layout! {
     crate::pod::PhotonParams => 80,
     crate::pod::PhotonPath => 16,
     crate::pod::Photon => 20,
-    crate::pod::IndexParams => 64,
+    crate::pod::IndexParams => 80,
     crate::pod::LeafCells => 32,
     crate::pod::ItemParams => 16,
     crate::pod::SortParams => 16,

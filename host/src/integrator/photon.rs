@@ -34,7 +34,7 @@ use kdray_shared::photon::PhotonWord;
 use kdray_shared::query::Closest;
 use kdray_shared::rng::pcg_hash;
 use kdray_shared::{
-    Camera, Hit, IndexParams, LeafCells, Photon, PhotonParams, PhotonPath, Ray, RenderParams, FILTER_CONSTANT, GATHER_EDGES, INDEX_GRID, INDEX_KD, ORDER_TILES,
+    Camera, Hit, IndexParams, LeafCells, Light, Photon, PhotonParams, PhotonPath, Ray, RenderParams, FILTER_CONSTANT, GATHER_EDGES, INDEX_GRID, INDEX_KD, ORDER_TILES,
     GATHER_LISTED, PHOTON_SOBOL, PHOTON_STORE_DIRECT, RENDER_CONTINUE, RENDER_GATHER, RENDER_JITTER, RENDER_LEVEL_SHIFT, RENDER_PHOTON_DIRECT, RENDER_SOBOL,
 };
 use std::collections::VecDeque;
@@ -278,8 +278,40 @@ pub struct PhotonMap<'t> {
     /// The kd index: each leaf's box (host), the cell table, the tree's nodes on the device.
     kd: Option<KdIndexData<'t>>,
     r0: f32,
+    /// `IndexParams::power_top` (`power_top`).
+    power_top: i32,
     /// Each triangle's open edges (`scene::open_edges`), with `FinalGather::Edges`.
     open_edges: Option<Buffer<u32>>,
+}
+
+/// `IndexParams::power_top` for passes of `emitted` photons from `lights`: two binades above
+/// the largest channel of a photon's power as it leaves a light (`photon::emit_photon`: the
+/// light's emission times its emitting factor, over its selection probability, power / total,
+/// times `emitted`). A diffuse bounce does not raise a photon's largest channel (Russian
+/// roulette by the largest albedo, at most 1), a mirror or glass neither, a spot light's
+/// falloff not past 1; a spot light's solid angle may exceed the one its power counts (by less
+/// than 2). So the words hold every photon's power (`photon::word_power`), 29 binades below it
+/// at full precision. 0 without lights.
+pub fn power_top(lights: &[Light], emitted: u32) -> i32 {
+    use std::f64::consts::PI;
+    let total: f64 = lights.iter().map(crate::scene::power).sum();
+    let mut most = 0.0f64;
+    for l in lights {
+        let w = crate::scene::power(l);
+        let factor = match l.kind {
+            kdray_shared::LIGHT_POINT => 4.0 * PI,
+            kdray_shared::LIGHT_SPOT => 2.0 * PI * (1.0 - l.e2[0] as f64),
+            _ => PI * l.area as f64,
+        };
+        let m = l.emission.iter().fold(0.0f32, |a, &b| a.max(b)) as f64;
+        if w > 0.0 {
+            most = most.max(m * factor * total / (w * emitted.max(1) as f64));
+        }
+    }
+    if !(most > 0.0 && most.is_finite()) {
+        return 0;
+    }
+    (most.log2().ceil() as i32 + 2).clamp(kdray_shared::photon::POWER_TOP[0], kdray_shared::photon::POWER_TOP[1])
 }
 
 /// Every node's box if it is a leaf (walking from the root cell).
@@ -401,6 +433,7 @@ impl<'t> PhotonMap<'t> {
             tree_bounds: t.trace_bounds(),
             kd,
             r0,
+            power_top: power_top(&scene.lights(), o.photons),
             open_edges,
             o,
         })
@@ -570,6 +603,7 @@ impl<'t> PhotonMap<'t> {
             grid: self.o.grid_window,
             bounds_min: self.bounds.0,
             bounds_max: self.bounds.1,
+            power_top: self.power_top,
             ..Default::default()
         }
     }
@@ -643,9 +677,9 @@ impl<'t> PhotonMap<'t> {
             words: u64,
         }
         impl CellVisitor for Count {
-            fn word(&mut self, w: glam::UVec4, _j: u32, _sorted: &SortedPhotons) {
+            fn word(&mut self, w: glam::UVec4, real: bool, _sorted: &SortedPhotons) {
                 self.words += 1;
-                if kdray_shared::photon::is_padding(w) {
+                if !real {
                     return;
                 }
                 self.visited += 1;
