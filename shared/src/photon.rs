@@ -309,10 +309,11 @@ impl PhotonWord {
     }
 }
 
-/// The range of `IndexParams::power_top` (clamped): its powers of two stay normal floats, and
-/// `power_scale` times a filter's weight (at most 3) finite. (Records' powers, RGB9E5, lie
-/// below 2^16.)
-pub const POWER_TOP: [i32; 2] = [-60, 17];
+/// The range of `IndexParams::power_top` (clamped): the records' powers (RGB9E5) lie within
+/// [2^-24, 2^16) or are 0, so a range of [2^-54, 2^-23) at the lowest still holds the smallest
+/// without clamping, one of [2^-14, 2^17) at the highest the largest; `power_scale` stays
+/// within [2^72, 2^112], times a filter's weight (at most 3) finite.
+pub const POWER_TOP: [i32; 2] = [-23, 17];
 /// Mantissa bits of a word's power channels (red, green, blue; `word_power`).
 const POWER_MANTISSA: [u32; 3] = [6, 6, 5];
 /// Where each channel's 5 + mantissa bits start in a word's power.
@@ -332,8 +333,8 @@ const POWER_SHIFT: [u32; 3] = [0, 11, 22];
 /// Rounding is dithered by the bits of `h` (a hash): over uniform `h` a channel's expectation
 /// is its value exactly, so a pass's photons, which mostly share their power, add up to their
 /// power however coarse the mantissa. Below the range (2^(top − 31)) a channel becomes the
-/// smallest value with probability value / smallest, else 0 (unbiased too, down to 2^-25 of
-/// the smallest); above the largest value, 2^top·(1 − 2^-(f + 1)), it is clamped to that
+/// smallest value with probability value / smallest, else 0 (unbiased too: a record's channel
+/// lies at most 2^-10 below the range, `POWER_TOP`, so the draw's 32 bits resolve it); above the largest value, 2^top·(1 − 2^-(f + 1)), it is clamped to that
 /// (the host sets `top` two binades above every photon's power: `IndexParams::power_top`).
 #[inline(always)]
 pub fn word_power(rgb9e5: u32, power_top: i32, h: u32) -> u32 {
@@ -389,7 +390,7 @@ pub fn power_floats(v: u32) -> [f32; 3] {
 }
 
 /// What `power_floats` are multiplied by for the powers: 2^(95 + top), top = `power_top`
-/// clamped to `POWER_TOP` (then within [2^35, 2^112]; the products are exact).
+/// clamped to `POWER_TOP` (then within [2^72, 2^112]; the products are exact).
 #[inline(always)]
 pub fn power_scale(power_top: i32) -> f32 {
     exp2i(95 + power_top.clamp(POWER_TOP[0], POWER_TOP[1]))
@@ -1252,14 +1253,16 @@ impl Disc {
 /// Whether the normal of word `w` lies within 60° of the unit vector n whose `normal_units`
 /// are `units`: m · n > 127/2 for its vector m (`word_normal`, of length 127 within 0.9: cos >
 /// 0.5 within 0.7 %, 0.25° at 60°), in whole numbers, m · units > 127 · 2^14 (n's units within
-/// 1/2 of n · 2^15: the bound within 2^-15 relative), exact on every runtime. One dot product
+/// 1/2 of n · 2^15: the dot product within 111 of m · n · 2^15, 2^-14 of the bound), exact on
+/// every runtime. One dot product
 /// against a fixed bound, no square root or division: the test runs for every photon a gather
 /// visits. Against m's own length instead (4 (m·n)² > |m|², m·n > 0), with a test of the
 /// filter at every photon too, the gather took 12–19 % longer (H100, 2026-12-05; the filter's
 /// test alone 8–13 %: `irradiance`). In integers (an arithmetic shift and a multiply-add a
 /// component) rather than floats (a shift, an or and a subtraction to make the component a
-/// float, then a multiply-add) the gather took 1–5 % less time, in tiles at ~50 photons a
-/// point (H100, docs/gpu-runs/2026-12-06-power-format-h100.md).
+/// float, then a multiply-add) the renders' gathers took 1.1–1.5 % less time, in tiles at ~50
+/// photons a point 2–6 % less on three scenes, 0.7 % more on the Cornell box (H100,
+/// docs/gpu-runs/2026-12-06-power-format-h100.md).
 #[inline(always)]
 pub fn facing(w: UVec4, units: [i32; 3]) -> bool {
     let m = word_normal(w);

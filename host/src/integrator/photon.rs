@@ -291,7 +291,9 @@ pub struct PhotonMap<'t> {
 /// roulette by the largest albedo, at most 1), a mirror or glass neither, a spot light's
 /// falloff not past 1; a spot light's solid angle may exceed the one its power counts (by less
 /// than 2). So the words hold every photon's power (`photon::word_power`), 29 binades below it
-/// at full precision. 0 without lights.
+/// at full precision. 0 without lights. (A material of albedo above 1 raises a photon's power,
+/// and lights chosen uniformly, where their powers are unusable (`Scene::lights`), need not
+/// follow their power: such photons may be clamped to the words' largest power.)
 pub fn power_top(lights: &[Light], emitted: u32) -> i32 {
     use std::f64::consts::PI;
     let total: f64 = lights.iter().map(crate::scene::power).sum();
