@@ -176,11 +176,10 @@ pub const WORD_BITS: u32 = 23;
 const TWO_23: f32 = 8_388_608.0;
 
 /// 2^23 + `m` for `m` < 2^23, exactly, by setting the bits of `m` under the exponent of 2^23: a
-/// bitwise or instead of an integer-to-float conversion, which GPUs run at a fraction of the
-/// rate of float arithmetic (the gather's distance test converts three fields of every photon it tests). The
-/// bias cancels in a multiply-add by a power of two s in [2^-126, 2^103]: `biased(m) · s` is
-/// exact, so `fma(biased(m), s, c)` is the same fused or not (Vulkan lets a driver split an
-/// `fma`).
+/// bitwise or instead of an integer-to-float conversion, which GPUs run at a fraction of the rate
+/// of float arithmetic (the gather's distance test converts three fields of every photon it tests).
+/// The bias cancels in a multiply-add by a power of two s in [2^-126, 2^103]: `biased(m) · s` is
+/// exact, so `fma(biased(m), s, c)` is the same fused or not (Vulkan lets a driver split an `fma`).
 #[inline(always)]
 fn biased(m: u32) -> f32 {
     f32::from_bits(m | 0x4b00_0000)
@@ -330,12 +329,13 @@ const POWER_SHIFT: [u32; 3] = [0, 11, 22];
 /// decode of that cost took 7–11 % off the gather at ~50 photons a point, H100,
 /// docs/gpu-runs/2026-12-06-gather-ablations-h100.md).
 ///
-/// Rounding is dithered by the bits of `h` (a hash): over uniform `h` a channel's expectation
-/// is its value exactly, so a pass's photons, which mostly share their power, add up to their
-/// power however coarse the mantissa. Below the range (2^(top − 31)) a channel becomes the
-/// smallest value with probability value / smallest, else 0 (unbiased too: a record's channel
-/// lies at most 2^-10 below the range, `POWER_TOP`, so the draw's 32 bits resolve it); above the largest value, 2^top·(1 − 2^-(f + 1)), it is clamped to that
-/// (the host sets `top` two binades above every photon's power: `IndexParams::power_top`).
+/// Rounding is dithered by the bits of `h` (a hash): over uniform `h` a channel's expectation is
+/// its value exactly, so a pass's photons, which mostly share their power, add up to their power
+/// however coarse the mantissa. Below the range (2^(top − 31)) a channel becomes the smallest value
+/// with probability value / smallest, else 0 (unbiased too: a record's channel lies at most 2^-10
+/// below the range, `POWER_TOP`, so the draw's 32 bits resolve it); above the largest value,
+/// 2^top·(1 − 2^-(f + 1)), it is clamped to that (the host sets `top` two binades above every
+/// photon's power: `IndexParams::power_top`).
 #[inline(always)]
 pub fn word_power(rgb9e5: u32, power_top: i32, h: u32) -> u32 {
     let top = power_top.clamp(POWER_TOP[0], POWER_TOP[1]);
@@ -399,15 +399,15 @@ pub fn power_scale(power_top: i32) -> f32 {
 /// The length of the normal vectors of photon words (`normal_bytes`), to within 0.9.
 pub const NORMAL_LENGTH: f32 = 127.0;
 
-/// An octahedral normal of 2 × 8 bits (`encode_oct`) as the three bytes a photon word holds:
-/// the direction as a vector of length `NORMAL_LENGTH` in whole numbers (each in −127..=127),
-/// stored in two's complement (so an arithmetic shift reads one). By integer arithmetic alone, so every runtime writes the same bytes:
-/// `oct_vector` × 255 (unfolded on the lower half), its length by an integer square root
-/// (× 16), each component scaled by 127 over it in a rounded division. Each component is off
-/// by at most 1/2 (and the length by 1/16 of a unit), so the direction is within 0.4° of the
-/// code's and the length within 0.9 of 127: the gather reads a vector without the octahedral
-/// fold (`word_normal`) and tests it by one dot product against a fixed bound (`facing`), not
-/// against its length.
+/// An octahedral normal of 2 × 8 bits (`encode_oct`) as the three bytes a photon word holds: the
+/// direction as a vector of length `NORMAL_LENGTH` in whole numbers (each in −127..=127), stored in
+/// two's complement (so an arithmetic shift reads one). By integer arithmetic alone, so every
+/// runtime writes the same bytes: `oct_vector` × 255 (unfolded on the lower half), its length by an
+/// integer square root (× 16), each component scaled by 127 over it in a rounded division. Each
+/// component is off by at most 1/2 (and the length by 1/16 of a unit), so the direction is within
+/// 0.4° of the code's and the length within 0.9 of 127: the gather reads a vector without the
+/// octahedral fold (`word_normal`) and tests it by one dot product against a fixed bound
+/// (`facing`), not against its length.
 #[inline(always)]
 pub fn normal_bytes(oct: u32) -> [u32; 3] {
     let x = 2 * (oct & 0xff) as i32 - 255;
@@ -1250,18 +1250,17 @@ impl Disc {
     }
 }
 
-/// Whether the normal of word `w` lies within 60° of the unit vector n whose `normal_units`
-/// are `units`: m · n > 127/2 for its vector m (`word_normal`, of length 127 within 0.9: cos >
-/// 0.5 within 0.7 %, 0.25° at 60°), in whole numbers, m · units > 127 · 2^14 (n's units within
-/// 1/2 of n · 2^15: the dot product within 111 of m · n · 2^15, 2^-14 of the bound), exact on
-/// every runtime. One dot product
-/// against a fixed bound, no square root or division: the test runs for every photon a gather
-/// visits. Against m's own length instead (4 (m·n)² > |m|², m·n > 0), with a test of the
-/// filter at every photon too, the gather took 12–19 % longer (H100, 2026-12-05; the filter's
-/// test alone 8–13 %: `irradiance`). In integers (an arithmetic shift and a multiply-add a
-/// component) rather than floats (a shift, an or and a subtraction to make the component a
-/// float, then a multiply-add) the renders' gathers took 1.1–1.5 % less time, in tiles at ~50
-/// photons a point 2–6 % less on three scenes, 0.7 % more on the Cornell box (H100,
+/// Whether the normal of word `w` lies within 60° of the unit vector n whose `normal_units` are
+/// `units`: m · n > 127/2 for its vector m (`word_normal`, of length 127 within 0.9: cos > 0.5
+/// within 0.7 %, 0.25° at 60°), in whole numbers, m · units > 127 · 2^14 (n's units within 1/2 of n
+/// · 2^15: the dot product within 111 of m · n · 2^15, 2^-14 of the bound), exact on every runtime.
+/// One dot product against a fixed bound, no square root or division: the test runs for every
+/// photon a gather visits. Against m's own length instead (4 (m·n)² > |m|², m·n > 0), with a test
+/// of the filter at every photon too, the gather took 12–19 % longer (H100, 2026-12-05; the
+/// filter's test alone 8–13 %: `irradiance`). In integers (an arithmetic shift and a multiply-add a
+/// component) rather than floats (a shift, an or and a subtraction to make the component a float,
+/// then a multiply-add) the renders' gathers took 1.1–1.5 % less time, in tiles at ~50 photons a
+/// point 2–6 % less on three scenes, 0.7 % more on the Cornell box (H100,
 /// docs/gpu-runs/2026-12-06-power-format-h100.md).
 #[inline(always)]
 pub fn facing(w: UVec4, units: [i32; 3]) -> bool {
