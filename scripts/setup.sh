@@ -48,7 +48,15 @@ if ! have_loader || ! have_driver; then
   echo "setup: no Vulkan driver found: installing the Vulkan loader and Mesa's lavapipe"
   packages+=(libvulkan1 mesa-vulkan-drivers)
 fi
-if [ -z "${KDRAY_PLOT_FONT:-}" ] && ! ls /usr/share/fonts/truetype/dejavu/DejaVuSans.ttf /usr/share/fonts/TTF/DejaVuSans.ttf /usr/share/fonts/dejavu/DejaVuSans.ttf >/dev/null 2>&1; then
+# Whether any of the paths (globs expanded) exists. (`ls a b` fails when any one is missing:
+# with it these checks reinstalled what was there.)
+any_exists() {
+  for f in "$@"; do
+    [ -e "$f" ] && return 0
+  done
+  return 1
+}
+if [ -z "${KDRAY_PLOT_FONT:-}" ] && ! any_exists /usr/share/fonts/truetype/dejavu/DejaVuSans.ttf /usr/share/fonts/TTF/DejaVuSans.ttf /usr/share/fonts/dejavu/DejaVuSans.ttf; then
   echo "setup: no DejaVu font found: installing fonts-dejavu-core (benchmark plots)"
   packages+=(fonts-dejavu-core)
 fi
@@ -61,7 +69,10 @@ if [ "${1:-}" = "--mpi" ]; then
     echo "setup: no Open MPI found: installing openmpi-bin and libopenmpi-dev (render --mpi)"
     packages+=(openmpi-bin libopenmpi-dev)
   fi
-  if ! ls /usr/lib/llvm-*/lib/libclang*.so* /usr/lib/x86_64-linux-gnu/libclang*.so* >/dev/null 2>&1; then
+  # libclang itself (libclang.so*, libclang-N*.so*), not libclang-cpp, which bindgen cannot use
+  # and which a machine with LLVM may have alone (CI failed so on a fresh machine, 2026-12-06).
+  if ! any_exists /usr/lib/llvm-*/lib/libclang.so* /usr/lib/llvm-*/lib/libclang-[0-9]*.so* /usr/lib/x86_64-linux-gnu/libclang.so* \
+    /usr/lib/x86_64-linux-gnu/libclang-[0-9]*.so*; then
     echo "setup: no libclang found: installing libclang-dev (the mpi crate's bindings)"
     packages+=(libclang-dev)
   fi
