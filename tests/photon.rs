@@ -142,12 +142,10 @@ fn check_index(map: &PhotonMap, tree: &KdTreeData, records: &[Photon], what: &st
     let view = SortedPhotons { words: &sorted, offsets: &offsets };
     let p = map.index_params(pass, 0);
     let frame = WordFrame::new(&p);
-    // The words of the records, marked with their maps (`WORD_CAUSTIC`).
-    let caustic = |r: &Photon| p.maps > 1 && r.is_caustic();
-    let map_of = |w: &PhotonWord| (w.word.x & kdray_shared::photon::WORD_CAUSTIC != 0) as u32;
+    // The words of the records; a word's maps (several records may share a word).
+    let mut of_word: std::collections::HashMap<PhotonWord, Vec<u32>> = Default::default();
     for r in records {
-        let w = PhotonWord::of(r, &frame, caustic(r));
-        assert_eq!(map_of(&w), caustic(r) as u32, "{what}: a word not marked with its photon's map");
+        let w = PhotonWord::of(r, &frame);
         let q = frame.position(w.word);
         let field = frame.encode(r.position);
         for a in 0..3 {
@@ -172,8 +170,9 @@ fn check_index(map: &PhotonMap, tree: &KdTreeData, records: &[Photon], what: &st
         // at most 0.4° off).
         let dot = Vec3::from(w.normal()).dot(Vec3::from(r.normal()));
         assert!(dot >= 0.9999, "{what}: a word's normal is not its photon's ({:?} vs {:?})", w.normal(), r.normal());
+        of_word.entry(w).or_default().push(if p.maps > 1 && r.is_caustic() { 1 } else { 0 });
     }
-    let mut a: Vec<_> = records.iter().map(|r| PhotonWord::of(r, &frame, caustic(r)).word.to_array()).collect();
+    let mut a: Vec<_> = records.iter().map(|r| PhotonWord::of(r, &frame).word.to_array()).collect();
     let mut b: Vec<_> = sorted.iter().map(|w| w.word.to_array()).collect();
     a.sort();
     b.sort();
@@ -181,28 +180,25 @@ fn check_index(map: &PhotonMap, tree: &KdTreeData, records: &[Photon], what: &st
     let table = map.leaf_table(pass);
     let kd;
     let grid = HashGrid::new(&p);
-    let index: &dyn Fn([f32; 3]) -> u32 = if p.kind == INDEX_KD {
+    let index: &dyn Fn([f32; 3], u32) -> u32 = if p.kind == INDEX_KD {
         kd = KdCells::new(&p, &tree.nodes, table.as_deref().unwrap());
-        &|x| kd.cell(x)
+        &|x, m| kd.cell(x, m)
     } else {
-        &|x| grid.cell(x)
+        &|x, m| grid.cell(x, m)
     };
-    // Each placed word with its map (both maps' photons share the cells).
+    // Each placed word with its map (the caustic map's cells follow the global map's).
     let mut placed: Vec<(PhotonWord, u32)> = Vec::new();
-    for c in 0..p.cells {
+    for c in 0..p.cells * p.maps {
         let (a, b) = cell_range(&p, &offsets, c);
+        let m = c / p.cells;
         for w in &sorted[a as usize..b as usize] {
-            assert_eq!(index(w.position(&frame)), c, "{what}: a photon in the wrong cell");
-            placed.push((*w, map_of(w)));
+            assert!(of_word[w].contains(&m), "{what}: a photon in the wrong map");
+            assert_eq!(index(w.position(&frame), m), c, "{what}: a photon in the wrong cell");
+            placed.push((*w, m));
         }
     }
     assert_eq!(placed.len(), sorted.len(), "{what}: the cells do not hold every placed photon once");
-    if p.maps > 1 {
-        let caustics = placed.iter().filter(|(_, m)| *m == 1).count();
-        assert!(caustics > 100 && caustics < placed.len() - 100, "{what}: {caustics} caustic photons of {}", placed.len());
-    }
-    // Gathers at photon positions (offset) against brute force: maps m.. (every map for m = 0,
-    // the caustic map's alone for m = 1), each map's photons within its own radius.
+    // Gathers at photon positions (offset) against brute force.
     let gather = |x: [f32; 3], n: [f32; 3], m: u32| -> kdray_shared::photon::Estimate {
         if p.kind == INDEX_KD {
             let kd = KdCells::new(&p, &tree.nodes, table.as_deref().unwrap());
@@ -215,13 +211,13 @@ fn check_index(map: &PhotonMap, tree: &KdTreeData, records: &[Photon], what: &st
     // Points near photons, some of them on the grid's cell boundaries (where a gather that
     // trims its cells to the sphere must not lose a photon to rounding) or a radius away from
     // a photon along an axis.
-    let cell_size = |axis: usize| grid.cell_size[axis.min(1)];
+    let cell_size = |m: u32, axis: usize| p.radius[m as usize] * 2.0 / (kdray_shared::photon::grid_windows(p.grid)[axis.min(1)] - 1) as f32;
     let snap = |x: f32, o: f32, c: f32| o + ((x - o) / c).round() * c;
     for (k, (ph, m)) in placed.iter().step_by((placed.len() / 1200).max(1)).enumerate() {
         let m = *m;
         let r = p.radius[m as usize];
         let q = ph.position(&frame);
-        let (c, o) = ([cell_size(0), cell_size(1), cell_size(2)], p.bounds_min);
+        let (c, o) = ([cell_size(m, 0), cell_size(m, 1), cell_size(m, 2)], p.bounds_min);
         // The last two: the photon just within the radius along x, or along a diagonal (at the
         // end of the chord a row of the grid is clipped to, in a row away from x's).
         let x = match k % 5 {
@@ -238,25 +234,23 @@ fn check_index(map: &PhotonMap, tree: &KdTreeData, records: &[Photon], what: &st
         let est = gather(x, n, m);
         let (e, found) = (est.irradiance, est.found);
         let (mut want, mut count) = ([0.0f64; 3], 0);
-        for (q, qm) in placed.iter().filter(|(_, qm)| *qm >= m) {
+        for (q, _) in placed.iter().filter(|(_, qm)| *qm == m) {
             // A word's offset from x as a gather decodes it (`WordFrame::offset`).
             let d = Vec3::from(frame.offset(q.word, frame.base(x)));
-            let rq = p.radius[*qm as usize];
-            if d.length_squared() > rq * rq {
+            if d.length_squared() > r * r {
                 continue;
             }
             if kdray_shared::photon::facing(q.word, kdray_shared::photon::normal_units(n)) {
                 count += 1;
-                // Over π r² of the photon's map.
-                let scale = 1.0 / (std::f64::consts::PI * (rq as f64).powi(2));
                 for c in 0..3 {
-                    want[c] += q.power(&frame)[c] as f64 * scale;
+                    want[c] += q.power(&frame)[c] as f64;
                 }
             }
         }
-        assert_eq!(found, count, "{what}: gather at {x:?} (maps {m}..) found {found} photons, brute force {count}");
+        assert_eq!(found, count, "{what}: gather at {x:?} found {found} photons, brute force {count}");
+        let scale = 1.0 / (std::f64::consts::PI * (r as f64).powi(2));
         for c in 0..3 {
-            let w = want[c];
+            let w = want[c] * scale;
             assert!((e[c] as f64 - w).abs() <= 1e-4 * w + 1e-30, "{what}: irradiance {} vs brute force {w}", e[c]);
         }
         nonempty += (count > 0) as usize;
@@ -267,7 +261,7 @@ fn check_index(map: &PhotonMap, tree: &KdTreeData, records: &[Photon], what: &st
 /// Photon words sorted by cell as the index's sort leaves them (`cell_range` reads them back).
 fn hand_index<I: PhotonIndex>(p: &kdray_shared::IndexParams, index: &I, words: &[PhotonWord]) -> (Vec<PhotonWord>, Vec<u32>) {
     let frame = WordFrame::new(p);
-    let mut placed: Vec<(u32, PhotonWord)> = words.iter().map(|w| (index.cell(frame.position(w.word)), *w)).collect();
+    let mut placed: Vec<(u32, PhotonWord)> = words.iter().map(|w| (index.cell(frame.position(w.word), 0), *w)).collect();
     placed.sort_by_key(|c| c.0);
     let slot = |c: u32| kdray_shared::photon::offset_slot(p, c) as usize;
     let mut offsets = vec![0u32; slot(p.cells - 1) + 2];
@@ -335,8 +329,8 @@ fn gathers_find_what_brute_force_counts_at_radii_of_a_few_word_steps() {
                 let nodes = [kdray_shared::kdtree::KdNode::leaf(0, 0)];
                 let leaves = [kdray_shared::LeafCells { lo: min, base: 0, hi: max, dims: 37 | 37 << 10 | 37 << 20 }];
                 let (kd, hash) = (KdCells::new(&p, &nodes, &leaves), HashGrid::new(&p));
-                let cell = |x: [f32; 3]| if grid == 0 { kd.cell(x) } else { hash.cell(x) };
-                let word = |x: [f32; 3]| PhotonWord::of(&Photon::new(x, [1.0; 3], [0.0, 0.0, 1.0], [0.0, 0.0, -1.0], false, false, 0.5), &frame, false);
+                let cell = |x: [f32; 3]| if grid == 0 { kd.cell(x, 0) } else { hash.cell(x, 0) };
+                let word = |x: [f32; 3]| PhotonWord::of(&Photon::new(x, [1.0; 3], [0.0, 0.0, 1.0], [0.0, 0.0, -1.0], false, false, 0.5), &frame);
                 for trial in 0..60 {
                     let a = trial % 3;
                     let c: [f32; 3] = std::array::from_fn(|k| min[k] + (0.2 + 0.6 * rand()) * (max[k] - min[k]));
@@ -344,7 +338,7 @@ fn gathers_find_what_brute_force_counts_at_radii_of_a_few_word_steps() {
                     // a, photons on the words' steps just behind it. b: the first change of cell
                     // along a, found by stepping a quarter of a cell (so into the next cell),
                     // then bisecting. `at(t)`: c with its coordinate along a at t.
-                    let size = if grid == 0 { (max[a] - min[a]) / 37.0 } else { hash.cell_size[a.min(1)] };
+                    let size = if grid == 0 { (max[a] - min[a]) / 37.0 } else { hash.cell_size[0][a.min(1)] };
                     let at = |t: f32| {
                         let mut y = c;
                         y[a] = t;
@@ -523,10 +517,7 @@ fn photon_word_normals_are_the_octahedral_normals_within_a_degree() {
         let b = kdray_shared::photon::normal_bytes(oct);
         assert!(b.iter().all(|&v| v < 256), "code {oct:#x}: bytes {b:?}");
         let ph = Photon { position: [0.5; 3], packed: oct, ..Default::default() };
-        // Half of them marked the caustic map's: the mark moves neither normal nor position.
-        let w = PhotonWord::of(&ph, &frame, oct & 1 == 1);
-        assert_eq!(w.word.x & kdray_shared::photon::WORD_CAUSTIC != 0, oct & 1 == 1, "code {oct:#x}: the map's mark");
-        assert_eq!(w.position(&frame), frame.snap(ph.position), "code {oct:#x}: the position");
+        let w = PhotonWord::of(&ph, &frame);
         assert!(b != [0; 3], "code {oct:#x}: a zero normal");
         let dot = Vec3::from(w.normal()).dot(Vec3::from(n));
         worst = worst.min(dot);

@@ -987,7 +987,7 @@ impl<'a> IndexBinds<'a> {
 
 /// The cell of every stored photon and its rank in the cell (`photon::keys`).
 pub struct PhotonKeys<'a> {
-    /// Photon slots (`count`), cells, maps, gather radii and scene box.
+    /// Photon slots (`count`), cells per map, maps, gather radii and scene box.
     pub params: IndexParams,
     /// The photon index whose cells the keys name.
     pub index: IndexBinds<'a>,
@@ -1046,7 +1046,7 @@ impl Kernel for PhotonKeys<'_> {
 
 /// The stored photons in cell order (`photon::place`): each at its cell's offset plus its rank.
 pub struct PlacePhotons<'a> {
-    /// Photon slots (`count`), the index's kind, cells and maps.
+    /// Photon slots (`count`), the index's kind, cells per map and maps.
     pub params: IndexParams,
     /// The stored photon records.
     pub photons: &'a Buffer<Photon>,
@@ -1097,7 +1097,7 @@ impl Kernel for PlacePhotons<'_> {
 /// The photon-map estimate at every gather point, added to the path's radiance
 /// (`photon::gather`).
 pub struct Gather<'a> {
-    /// Paths (`count`), cells, maps, gather radii, filter and scene box.
+    /// Paths (`count`), cells per map, maps, gather radii, filter and scene box.
     pub params: IndexParams,
     /// The photon index whose cells are searched.
     pub index: IndexBinds<'a>,

@@ -49,8 +49,6 @@ pub const GROUP: u32 = 32;
 pub const CAUSTIC_BIT: u32 = 1 << 30;
 /// Bit of `Photon::packed`: a photon stored at its first hit, straight from a light.
 pub const DIRECT_BIT: u32 = 1 << 31;
-/// Bit of a photon word's `x` (`PhotonWord`): the photon is the caustic map's.
-pub const WORD_CAUSTIC: u32 = 1 << 23;
 /// The cell of an empty photon slot (left out by the counting sort).
 pub const NO_CELL: u32 = u32::MAX;
 /// Bound on the kd-tree walk of the index (the builder's depth limit is 48).
@@ -193,8 +191,8 @@ fn biased(m: u32) -> f32 {
 /// into a vector of whole numbers, three bytes: `normal_bytes`) and its power (`word_power`:
 /// a float per channel, dithered from the record's RGB9E5).
 ///
-/// Bits: `x` = qx | `WORD_CAUSTIC` for a caustic map's photon | the normal's x byte << 24; `y`
-/// = qy | its y byte << 24; `z` = qz | its z byte << 24; `w` = power. (With the z byte at bit 23 and a padding bit of its own, the
+/// Bits: `x` = qx | the normal's x byte << 24; `y` = qy | its y byte << 24; `z` = qz | its z
+/// byte << 24; `w` = power. (With the z byte at bit 23 and a padding bit of its own, the
 /// gather took 2.0–2.5 % longer on the H100: a mask and a test more per photon.)
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Hash, Pod, Zeroable)]
@@ -281,16 +279,15 @@ impl WordFrame {
 }
 
 impl PhotonWord {
-    /// The word of `ph` in `frame`, marked the caustic map's (`WORD_CAUSTIC`) if `caustic`.
+    /// The word of `ph` in `frame`.
     #[inline(always)]
-    pub fn of(ph: &Photon, frame: &WordFrame, caustic: bool) -> PhotonWord {
+    pub fn of(ph: &Photon, frame: &WordFrame) -> PhotonWord {
         let q = frame.encode(ph.position);
         let n = normal_bytes(ph.packed & 0xffff);
         // The power's dither: a hash of the record (every runtime draws the same).
         let b = |x: f32| x.to_bits();
         let h = pcg_hash(b(ph.position[0]) ^ pcg_hash(b(ph.position[1]) ^ pcg_hash(b(ph.position[2]) ^ pcg_hash(ph.packed ^ ph.power))));
-        let map = if caustic { WORD_CAUSTIC } else { 0 };
-        PhotonWord { word: UVec4::new(q[0] | map | n[0] << 24, q[1] | n[1] << 24, q[2] | n[2] << 24, word_power(ph.power, frame.power_top, h)) }
+        PhotonWord { word: UVec4::new(q[0] | n[0] << 24, q[1] | n[1] << 24, q[2] | n[2] << 24, word_power(ph.power, frame.power_top, h)) }
     }
     /// Where the photon landed, to a step of `frame`.
     #[inline(always)]
@@ -437,7 +434,7 @@ pub fn normal_bytes(oct: u32) -> [u32; 3] {
 /// The normal vector of a word's bytes (`normal_bytes`), in whole numbers (−127..=127, of
 /// length `NORMAL_LENGTH` within 0.9): an arithmetic shift each.
 #[inline(always)]
-fn word_normal(w: UVec4) -> [i32; 3] {
+pub fn word_normal(w: UVec4) -> [i32; 3] {
     [(w.x as i32) >> 24, (w.y as i32) >> 24, (w.z as i32) >> 24]
 }
 
@@ -741,12 +738,12 @@ impl SortedPhotons<'_> {
 
 /// Where photons live: the cell of a photon, and the cells a disc query must look at.
 pub trait PhotonIndex {
-    /// The cell that holds a photon at `p` (of either map: a word tells its map,
-    /// `WORD_CAUSTIC`).
-    fn cell(&self, p: [f32; 3]) -> u32;
-    /// Visits (`CellVisitor`) the photons of runs of consecutive cells that hold every cell
-    /// that may hold a photon within `r` of `x` (and possibly others), each such cell once.
-    fn visit<V: CellVisitor>(&self, x: [f32; 3], r: f32, sorted: &SortedPhotons, v: &mut V);
+    /// The cell (of `map`: 0 global, 1 caustic) that holds a photon at `p`.
+    fn cell(&self, p: [f32; 3], map: u32) -> u32;
+    /// Visits (`CellVisitor`) the photons of runs of consecutive cells of `map` that hold
+    /// every cell that may hold a photon within `r` of `x` (and possibly others), each such
+    /// cell once.
+    fn visit<V: CellVisitor>(&self, x: [f32; 3], r: f32, map: u32, sorted: &SortedPhotons, v: &mut V);
 }
 
 /// How far from a query point x a photon that `Disc::test` counts at radius `r` may lie, along
@@ -780,7 +777,7 @@ pub fn gather_slack(p: &IndexParams) -> f32 {
     m * (1.0 / 2_097_152.0)
 }
 
-/// (B) A hashed uniform grid, its cells `wx` × w × w to a query's window (`grid_windows`):
+/// (B) A hashed uniform grid per map, its cells `wx` × w × w to a query's window (`grid_windows`):
 /// across the rows (y and z) cells of 2r/(w − 1) for w = 2 or 3 (cells of 2r or r), along them
 /// (x) cells of 2r/(wx − 1), as fine or finer (wx = w, or 5, 7 or 9 cells of r/2, r/3 or r/4
 /// with w = 3), so a disc of radius r overlaps at most wx × w × w cells. Cells are grouped in
@@ -803,16 +800,16 @@ pub fn gather_slack(p: &IndexParams) -> f32 {
 pub struct HashGrid {
     /// The scene box's minimum corner; cells are counted from one cell below it.
     pub origin: [f32; 3],
-    /// Buckets: `blocks` × wx·w².
+    /// Buckets per map: `blocks` × wx·w².
     pub cells: u32,
     /// Cells along x of a query's window (2, 3, 5, 7 or 9).
     pub wx: u32,
     /// Cells along y and along z of a query's window (2 or 3).
     pub w: u32,
-    /// Hashed slots of blocks (a power of two).
+    /// Hashed slots of blocks per map (a power of two).
     pub blocks: u32,
-    /// The cell size along x, and along y and z (for the larger of the maps' radii).
-    pub cell_size: [f32; 2],
+    /// Per map (global, caustic): the cell size along x, and along y and z.
+    pub cell_size: [[f32; 2]; 2],
     /// `gather_slack` of the index's parameters.
     pub slack: f32,
 }
@@ -835,7 +832,7 @@ pub fn grid_windows(grid: u32) -> [u32; 2] {
 
 impl HashGrid {
     /// The grid of `p`: origin `bounds_min`, `cells` buckets, cells of 2s/(wx − 1) along x and
-    /// 2s/(w − 1) along y and z for the larger radius r of the maps', s its `reach` widened once more
+    /// 2s/(w − 1) along y and z for each map's radius r, s its `reach` widened once more
     /// by as much (so a window of wx × w × w cells spans the reach on both sides of any point,
     /// whatever the rounding of the cells' coordinates; at most 2^23 + 2 cells along an axis, so
     /// `coord` counts them exactly in `f32`).
@@ -848,9 +845,7 @@ impl HashGrid {
             let s = fma(r, 2e-5, r) + 2.0 * slack;
             [kx * s, k * s]
         };
-        // One grid for both maps (`irradiance`: a gather visits them together).
-        let r = if p.maps > 1 { p.radius[0].max(p.radius[1]) } else { p.radius[0] };
-        HashGrid { origin: p.bounds_min, cells: p.cells, wx, w, blocks: p.cells / (wx * w * w), cell_size: size(r), slack }
+        HashGrid { origin: p.bounds_min, cells: p.cells, wx, w, blocks: p.cells / (wx * w * w), cell_size: [size(p.radius[0]), size(p.radius[1])], slack }
     }
     #[inline(always)]
     fn coord(&self, x: f32, o: f32, inv: f32) -> u32 {
@@ -858,25 +853,25 @@ impl HashGrid {
         floor_u32((x - o) * inv + 1.0)
     }
     #[inline(always)]
-    fn bucket(&self, c: [u32; 3]) -> u32 {
+    fn bucket(&self, c: [u32; 3], map: u32) -> u32 {
         let (wx, w) = (self.wx, self.w);
         let h = pcg_hash((c[0] / wx) ^ pcg_hash((c[1] / w) ^ pcg_hash(c[2] / w)));
         let place = c[0] % wx + wx * (c[1] % w + w * (c[2] % w));
-        (h & (self.blocks - 1)) * (wx * w * w) + place
+        (h & (self.blocks - 1)) * (wx * w * w) + place + map * self.cells
     }
 }
 
 impl PhotonIndex for HashGrid {
     #[inline(always)]
-    fn cell(&self, p: [f32; 3]) -> u32 {
-        let s = self.cell_size;
+    fn cell(&self, p: [f32; 3], map: u32) -> u32 {
+        let s = self.cell_size[map as usize];
         let (ix, i) = (1.0 / s[0], 1.0 / s[1]);
         let o = self.origin;
-        self.bucket([self.coord(p[0], o[0], ix), self.coord(p[1], o[1], i), self.coord(p[2], o[2], i)])
+        self.bucket([self.coord(p[0], o[0], ix), self.coord(p[1], o[1], i), self.coord(p[2], o[2], i)], map)
     }
     #[inline(always)]
-    fn visit<V: CellVisitor>(&self, x: [f32; 3], r: f32, sorted: &SortedPhotons, v: &mut V) {
-        let s = self.cell_size;
+    fn visit<V: CellVisitor>(&self, x: [f32; 3], r: f32, map: u32, sorted: &SortedPhotons, v: &mut V) {
+        let s = self.cell_size[map as usize];
         let (ix, i, c) = (1.0 / s[0], 1.0 / s[1], s[1]);
         let o = self.origin;
         let (wx, w) = (self.wx, self.w);
@@ -894,6 +889,7 @@ impl PhotonIndex for HashGrid {
         // run, or two where it crosses into the next block. The block hash is nested as in
         // `bucket`. Offsets come by segments of a block's wx·w² cells (`offset_slot`), one
         // more entry each.
+        let first_block = map * self.blocks;
         let seg = wx * w * w;
         let (qx0, mx0) = (lo[0] / wx, lo[0] % wx);
         // Each row (y, z) is clipped to the sphere: at distance d from x its rectangle across
@@ -941,7 +937,7 @@ impl PhotonIndex for HashGrid {
                     let first = n.min(wx - ma);
                     let hy = pcg_hash(y.q ^ pcg_hash(z.q));
                     let place = wx * (y.m + w * z.m);
-                    let slot = |q: u32| (pcg_hash(q ^ hy) & (self.blocks - 1)) * (seg + 1) + place;
+                    let slot = |q: u32| ((pcg_hash(q ^ hy) & (self.blocks - 1)) + first_block) * (seg + 1) + place;
                     // Stored whatever they hold, kept (counted) only if they hold photons. At
                     // most MAX_RUNS runs: w ≤ 3 rows per axis, two runs a row.
                     let s0 = slot(qa) + ma;
@@ -1035,6 +1031,8 @@ pub struct KdCells<'a> {
     pub nodes: &'a [KdNode],
     /// Each node's cells, indexed like `nodes` (interior nodes' have `dims` 0).
     pub leaves: &'a [LeafCells],
+    /// Cells of one map; the caustic map's cells are numbered after the global map's.
+    pub cells: u32,
     /// `gather_slack` of the index's parameters.
     pub slack: f32,
 }
@@ -1056,7 +1054,7 @@ impl<'a> KdCells<'a> {
     /// The index of `p` over the tree's `nodes` and their cells `leaves`.
     #[inline(always)]
     pub fn new(p: &IndexParams, nodes: &'a [KdNode], leaves: &'a [LeafCells]) -> Self {
-        KdCells { nodes, leaves, slack: gather_slack(p) }
+        KdCells { nodes, leaves, cells: p.cells, slack: gather_slack(p) }
     }
 }
 
@@ -1077,17 +1075,17 @@ impl KdCells<'_> {
 
 impl PhotonIndex for KdCells<'_> {
     #[inline(always)]
-    fn cell(&self, p: [f32; 3]) -> u32 {
+    fn cell(&self, p: [f32; 3], map: u32) -> u32 {
         let l = &self.leaves[self.locate(p)];
         let d = dims(l);
         if d[0] == 0 {
             return NO_CELL;
         }
         let c = [leaf_coord(p[0], l.lo[0], l.hi[0], d[0]), leaf_coord(p[1], l.lo[1], l.hi[1], d[1]), leaf_coord(p[2], l.lo[2], l.hi[2], d[2])];
-        l.base + (c[2] * d[1] + c[1]) * d[0] + c[0]
+        l.base + (c[2] * d[1] + c[1]) * d[0] + c[0] + map * self.cells
     }
     #[inline(always)]
-    fn visit<V: CellVisitor>(&self, x: [f32; 3], r: f32, sorted: &SortedPhotons, v: &mut V) {
+    fn visit<V: CellVisitor>(&self, x: [f32; 3], r: f32, map: u32, sorted: &SortedPhotons, v: &mut V) {
         // Every photon `Disc::test` may count lies within the reach (`reach`); the
         // leaves' planes and cells place photons and the box's corners by the same monotonic
         // comparisons and coordinates.
@@ -1108,7 +1106,7 @@ impl PhotonIndex for KdCells<'_> {
                 let mut y = a[1];
                 while y <= b[1] {
                     // A row of the leaf's cells along x is a run of consecutive cells.
-                    let c = l.base + (z * d[1] + y) * d[0];
+                    let c = l.base + (z * d[1] + y) * d[0] + map * self.cells;
                     sorted.visit_run(c + a[0], c + b[0] + 1, v);
                     y += 1;
                 }
@@ -1152,7 +1150,7 @@ pub fn keys<I: PhotonIndex, K: Store<u32> + ?Sized, C: AtomicStore + ?Sized, S: 
         let key = if i < stored {
             // The cell of the photon's word (`place`), where a gather decodes it.
             let ph = &photons[i as usize];
-            index.cell(WordFrame::new(p).snap(ph.position))
+            index.cell(WordFrame::new(p).snap(ph.position), map_of(p, ph))
         } else {
             NO_CELL
         };
@@ -1161,12 +1159,12 @@ pub fn keys<I: PhotonIndex, K: Store<u32> + ?Sized, C: AtomicStore + ?Sized, S: 
     }
 }
 
-/// The index's counting sort: `p.cells` keys (both maps' photons share the cells), by segments of a block's cells for the
+/// The index's counting sort: `p.cells · p.maps` keys, by segments of a block's cells for the
 /// hashed grid (`sort::segment_offsets`), exact for the kd index.
 #[inline(always)]
 pub fn sort_params(p: &IndexParams) -> SortParams {
     let [wx, w] = grid_windows(p.grid);
-    SortParams { count: p.count, cells: p.cells, segment: if p.kind == INDEX_KD { 0 } else { wx * w * w }, _pad: 0 }
+    SortParams { count: p.count, cells: p.cells * p.maps, segment: if p.kind == INDEX_KD { 0 } else { wx * w * w }, _pad: 0 }
 }
 
 /// Where the offset of cell `cell` is: the hashed grid's offsets come by segments of a block's
@@ -1200,11 +1198,10 @@ pub fn place<C: Store<u32> + ?Sized, W: Store<PhotonWord> + ?Sized>(
 ) {
     if i < p.count {
         let key = keys[i as usize];
-        if key < p.cells {
+        if key < p.cells * p.maps {
             let rank = ranks[i as usize];
             let slot = (offsets[offset_slot(p, key) as usize] + rank) as usize;
-            let ph = &photons[i as usize];
-            words.store(slot, PhotonWord::of(ph, &WordFrame::new(p), map_of(p, ph) == 1));
+            words.store(slot, PhotonWord::of(&photons[i as usize], &WordFrame::new(p)));
             crate::sort::release(key, rank, counts);
         }
     }
@@ -1213,15 +1210,16 @@ pub fn place<C: Store<u32> + ?Sized, W: Store<PhotonWord> + ?Sized>(
 // ---------------------------------------------------------------------------------------------
 // Gather
 
-/// A gather's disc: a point `x` with unit normal n (on the viewing side, held as its
-/// `normal_units`) and radius² `r2`, and the frame of the photon words it tests (`WordFrame`)
-/// with its `base` at `x`.
+/// A gather's disc: a point `x` with unit normal `n` (on the viewing side) and radius² `r2`,
+/// and the frame of the photon words it tests (`WordFrame`) with its `base` at `x`.
 #[derive(Copy, Clone, Debug)]
 pub struct Disc {
     /// The words' frame.
     pub frame: WordFrame,
     /// The centre.
     pub x: [f32; 3],
+    /// The unit normal on the viewing side.
+    pub n: [f32; 3],
     /// The radius, squared.
     pub r2: f32,
     /// `frame.base(x)`.
@@ -1237,7 +1235,7 @@ impl Disc {
     #[inline(always)]
     pub fn new(p: &IndexParams, x: [f32; 3], n: [f32; 3], r: f32) -> Disc {
         let frame = WordFrame::new(p);
-        Disc { frame, x, r2: r * r, base: frame.base(x), power_scale: power_scale(frame.power_top), units: normal_units(n) }
+        Disc { frame, x, n, r2: r * r, base: frame.base(x), power_scale: power_scale(frame.power_top), units: normal_units(n) }
     }
 
     /// Whether the photon of word `w` counts: within the radius, its surface's normal within 60°
@@ -1272,34 +1270,24 @@ pub fn facing(w: UVec4, units: [i32; 3]) -> bool {
 }
 
 /// Sums the photons of visited cells within a disc, weighted by the filter (`FILTER_*`;
-/// `CONSTANT`: the constant filter, weight 1, without a test of `filter` at every photon). With
-/// `BOTH` the cells hold both maps' photons and each word's map (`WORD_CAUSTIC`) chooses its
-/// radius and its sum (the global map's photons count only if `global`); without, every
-/// photon is the global map's (a scene without a caustic map pays for no choice).
-struct Sum<const CONSTANT: bool, const BOTH: bool> {
+/// `CONSTANT`: the constant filter, weight 1, without a test of `filter` at every photon).
+struct Sum<const CONSTANT: bool> {
     disc: Disc,
-    /// Each map's radius².
-    r2: [f32; 2],
-    global: bool,
     filter: u32,
-    /// Each map's sum.
-    sum: [[f32; 3]; 2],
+    sum: [f32; 3],
     found: u32,
 }
 
-impl<const CONSTANT: bool, const BOTH: bool> CellVisitor for Sum<CONSTANT, BOTH> {
-    /// One 16-byte word a photon: its place, map, normal and power.
+impl<const CONSTANT: bool> CellVisitor for Sum<CONSTANT> {
+    /// One 16-byte word a photon: its place, normal and power.
     #[inline(always)]
     fn word(&mut self, w: UVec4, real: bool, _sorted: &SortedPhotons) {
-        let caustic = BOTH && w.x & WORD_CAUSTIC != 0;
-        let r2 = if caustic { self.r2[1] } else { self.r2[0] };
-        let d = self.disc.frame.offset(w, self.disc.base);
-        let d2 = dot3(d, d);
         // Branch-free: every photon's power is added, weighted 0 outside the disc (a branch
         // made the lanes of a subgroup that counted nothing wait for those that did: 10 % of
-        // the gather on the H200). Within its map's radius, its normal within 60° of the
-        // disc's (`facing`); a step's padding (`HashGrid::visit`) counts nowhere.
-        let counts = (d2 <= r2) & facing(w, self.disc.units) & real & (caustic | !BOTH | self.global);
+        // the gather on the H200).
+        let (counts, d2) = self.disc.test(w);
+        // A step's padding (`HashGrid::visit`) counts nowhere.
+        let counts = counts & real;
         // Natively a branch is cheaper than the work it skips (most visited photons lie
         // outside the disc; adding their zeros instead leaves the same sum): the native
         // Cornell box render, 16 passes at 512², 15.3 → 11.9 s on 2 cores, the same image.
@@ -1307,6 +1295,7 @@ impl<const CONSTANT: bool, const BOTH: bool> CellVisitor for Sum<CONSTANT, BOTH>
         if !counts {
             return;
         }
+        let r2 = self.disc.r2;
         let k = if CONSTANT {
             1.0
         } else if self.filter == FILTER_CONE {
@@ -1318,22 +1307,13 @@ impl<const CONSTANT: bool, const BOTH: bool> CellVisitor for Sum<CONSTANT, BOTH>
         };
         // The power (`word_power`): each channel's float (`power_floats`) times the scale, a
         // power of two (exact, so fused or not, the sum's addition rounds once), times the
-        // filter's weight k (0 outside the disc), into its map's sum (0 into the other's).
+        // filter's weight k (0 outside the disc).
         let f = power_floats(w.w);
-        let ks = if counts { self.disc.power_scale } else { 0.0 };
-        let (kg, kc) = if caustic { (0.0, ks) } else { (ks, 0.0) };
         if CONSTANT {
-            let g = self.sum[0];
-            self.sum[0] = [fma(f[0], kg, g[0]), fma(f[1], kg, g[1]), fma(f[2], kg, g[2])];
-            if BOTH {
-                let c = self.sum[1];
-                self.sum[1] = [fma(f[0], kc, c[0]), fma(f[1], kc, c[1]), fma(f[2], kc, c[2])];
-            }
+            let ks = if counts { self.disc.power_scale } else { 0.0 };
+            self.sum = [fma(f[0], ks, self.sum[0]), fma(f[1], ks, self.sum[1]), fma(f[2], ks, self.sum[2])];
         } else {
-            self.sum[0] = add3(self.sum[0], scale3(f, kg * k));
-            if BOTH {
-                self.sum[1] = add3(self.sum[1], scale3(f, kc * k));
-            }
+            self.sum = add3(self.sum, scale3(scale3(f, self.disc.power_scale), if counts { k } else { 0.0 }));
         }
         self.found += counts as u32;
     }
@@ -1348,43 +1328,24 @@ pub struct Estimate {
     pub found: u32,
 }
 
-/// Irradiance at `x` (normal `n` on the viewing side) from maps `first..p.maps`: Σ w·Φ / (π r²)
-/// over each map's photons within its radius r on the same side, summed over the maps. The
-/// maps share their cells (`WORD_CAUSTIC` tells a word's map): one visit of the cells within
-/// the larger radius of the maps summed (the caustic map's alone for `first` = 1), instead of
-/// a visit a map, each of its own cells: the second map's rows and runs cost more than its
-/// photons in the first's window (measured: docs/gpu-runs/2026-12-06-one-index-h100.md).
+/// Irradiance at `x` (normal `n` on the viewing side) from one map: Σ w·Φ / (π r²) over the
+/// photons within the map's radius on the same side.
 #[inline(always)]
-pub fn irradiance<I: PhotonIndex>(index: &I, p: &IndexParams, sorted: &SortedPhotons, x: [f32; 3], n: [f32; 3], first: u32) -> Estimate {
-    let [r0, r1] = p.radius;
-    if first >= p.maps.min(2) {
-        return Estimate::default();
-    }
-    let both = p.maps > 1;
-    let r = if !both { r0 } else if first == 0 { r0.max(r1) } else { r1 };
+pub fn irradiance<I: PhotonIndex>(index: &I, p: &IndexParams, sorted: &SortedPhotons, x: [f32; 3], n: [f32; 3], map: u32) -> Estimate {
+    let r = p.radius[map as usize];
     let disc = Disc::new(p, x, n, r);
-    let r2 = [r0 * r0, r1 * r1];
-    let global = first == 0;
     // The constant filter (the default) in a loop of its own: a test of the filter at every
     // photon cost 8–13 % of the gather (H100, 2026-12-05).
-    let sum = match (p.filter == FILTER_CONSTANT, both) {
-        (true, false) => run(index, x, r, sorted, Sum::<true, false> { disc, r2, global, filter: p.filter, sum: [[0.0; 3]; 2], found: 0 }),
-        (false, false) => run(index, x, r, sorted, Sum::<false, false> { disc, r2, global, filter: p.filter, sum: [[0.0; 3]; 2], found: 0 }),
-        (true, true) => run(index, x, r, sorted, Sum::<true, true> { disc, r2, global, filter: p.filter, sum: [[0.0; 3]; 2], found: 0 }),
-        (false, true) => run(index, x, r, sorted, Sum::<false, true> { disc, r2, global, filter: p.filter, sum: [[0.0; 3]; 2], found: 0 }),
+    let (sum, found) = if p.filter == FILTER_CONSTANT {
+        let mut s = Sum::<true> { disc, filter: p.filter, sum: [0.0; 3], found: 0 };
+        index.visit(x, r, map, sorted, &mut s);
+        (s.sum, s.found)
+    } else {
+        let mut s = Sum::<false> { disc, filter: p.filter, sum: [0.0; 3], found: 0 };
+        index.visit(x, r, map, sorted, &mut s);
+        (s.sum, s.found)
     };
-    let (sum, found) = sum;
-    let pi = core::f32::consts::PI;
-    let g = scale3(sum[0], 1.0 / (pi * r0 * r0));
-    let irradiance = if both { add3(g, scale3(sum[1], 1.0 / (pi * r1 * r1))) } else { g };
-    Estimate { irradiance, found }
-}
-
-/// Visits the cells within `r` of `x` with the sum `s`: its sums and count.
-#[inline(always)]
-fn run<I: PhotonIndex, const CONSTANT: bool, const BOTH: bool>(index: &I, x: [f32; 3], r: f32, sorted: &SortedPhotons, mut s: Sum<CONSTANT, BOTH>) -> ([[f32; 3]; 2], u32) {
-    index.visit(x, r, sorted, &mut s);
-    (s.sum, s.found)
+    Estimate { irradiance: scale3(sum, 1.0 / (core::f32::consts::PI * r * r)), found }
 }
 
 /// Path `i` (or, under `GATHER_LISTED`, the `i`-th path listed in `points`): if it ended at a
@@ -1422,9 +1383,13 @@ pub fn gather<I: PhotonIndex, P: Store<PathState> + ?Sized, L: Store<u32> + Atom
         let g = rays[k];
         let edges = p.gather_flags & GATHER_EDGES != 0;
         let near_edge = edges && path.flags & PATH_NEAR_EDGE != 0;
+        let mut e = [0.0; 3];
         // A point near an edge leaves the global map (map 0) to the final gather.
-        let first = if near_edge { p.first_map.max(1) } else { p.first_map };
-        let e = irradiance(index, p, sorted, g.origin, g.dir, first).irradiance;
+        let mut map = if near_edge { p.first_map.max(1) } else { p.first_map };
+        while map < p.maps {
+            e = add3(e, irradiance(index, p, sorted, g.origin, g.dir, map).irradiance);
+            map += 1;
+        }
         path.radiance = add3(path.radiance, mul3(path.throughput, e));
         if edges {
             if near_edge {

@@ -453,8 +453,7 @@ pub const FILTER_EPANECHNIKOV: u32 = 2;
 pub struct IndexParams {
     /// Items of this dispatch: photon slots (index) or paths (gather).
     pub count: u32,
-    /// Cells of the index. Both maps' photons share them (a word's map is a bit of it:
-    /// `photon::WORD_CAUSTIC`), so a gather visits both maps' photons at once.
+    /// Cells of one map; the caustic map's cells follow the global map's.
     pub cells: u32,
     /// `INDEX_GRID` or `INDEX_KD`.
     pub kind: u32,
@@ -506,7 +505,7 @@ pub const GATHER_LISTED: u32 = 4;
 pub struct LeafCells {
     /// Minimum corner of the leaf's box.
     pub lo: [f32; 3],
-    /// Number of the leaf's first cell; its cells follow, x fastest, then y, then z.
+    /// Number of the leaf's first cell in a map; its cells follow, x fastest, then y, then z.
     pub base: u32,
     /// Maximum corner of the leaf's box.
     pub hi: [f32; 3],

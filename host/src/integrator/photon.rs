@@ -269,7 +269,7 @@ pub struct PhotonMap<'t> {
     sort: CountingSort<'t>,
     /// Photon slots in `records`, `sorted` and the index (grown when a pass stores more).
     pub capacity: u32,
-    /// Cells of the index (both maps' photons share them).
+    /// Cells per map.
     cells: u32,
     maps: u32,
     bounds: ([f32; 3], [f32; 3]),
@@ -414,7 +414,7 @@ impl<'t> PhotonMap<'t> {
             }
         };
         let cells = Self::cells_for(o.index, capacity, o.grid_window, Self::leaf_count(&kd))?;
-        let sort = Self::sort_for(rt, o.index, o.grid_window, cells, capacity)?;
+        let sort = Self::sort_for(rt, o.index, o.grid_window, cells, maps, capacity)?;
         Ok(PhotonMap {
             t,
             accel,
@@ -441,7 +441,7 @@ impl<'t> PhotonMap<'t> {
         })
     }
 
-    /// Cells of the index: the grid's buckets (a power of two of blocks of wx·w² cells,
+    /// Cells per map: the grid's buckets (a power of two of blocks of wx·w² cells,
     /// `grid_windows`, about the photon count), or the kd index's budget: twice the photons,
     /// and at least a cell per leaf of the tree (`leaves`; `leaf_cells` gives every leaf one at
     /// the least, so with fewer cells than leaves the leaves' cells would run past the
@@ -472,11 +472,12 @@ impl<'t> PhotonMap<'t> {
     /// The index's counting sort, as the kernels expect it (`photon::sort_params`: by segments
     /// of a grid block's wx·w² cells, each row of a gather's window within a block then one
     /// run; exact offsets for the kd index).
-    fn sort_for(rt: &'t dyn Runtime, kind: IndexKind, window: u32, cells: u32, capacity: u32) -> Result<CountingSort<'t>> {
+    fn sort_for(rt: &'t dyn Runtime, kind: IndexKind, window: u32, cells: u32, maps: u32, capacity: u32) -> Result<CountingSort<'t>> {
+        let keys = cells.checked_mul(maps).ok_or_else(|| err!(TooLarge: "too many photon cells"))?;
         let kind = if kind == IndexKind::Kd { INDEX_KD } else { INDEX_GRID };
-        match kdray_shared::photon::sort_params(&IndexParams { kind, grid: window, cells, ..Default::default() }).segment {
-            0 => CountingSort::new(rt, cells, capacity),
-            seg => CountingSort::segmented(rt, cells, seg, capacity),
+        match kdray_shared::photon::sort_params(&IndexParams { kind, grid: window, cells, maps, ..Default::default() }).segment {
+            0 => CountingSort::new(rt, keys, capacity),
+            seg => CountingSort::segmented(rt, keys, seg, capacity),
         }
     }
 
@@ -488,7 +489,7 @@ impl<'t> PhotonMap<'t> {
         self.keys = rt.alloc("photon cell", capacity as usize)?;
         self.capacity = capacity;
         self.cells = Self::cells_for(self.o.index, capacity, self.o.grid_window, Self::leaf_count(&self.kd))?;
-        self.sort = Self::sort_for(rt, self.o.index, self.o.grid_window, self.cells, capacity)?;
+        self.sort = Self::sort_for(rt, self.o.index, self.o.grid_window, self.cells, self.maps, capacity)?;
         Ok(())
     }
 
@@ -664,10 +665,9 @@ impl<'t> PhotonMap<'t> {
         }
     }
 
-    /// What the gathers at every `stride`-th of the first `count` paths of `fb` visit (photons
-    /// of both maps, within the larger radius: `photon::irradiance`) and find of the global
-    /// map, from the index as it stands (after `record_index` ran) and the paths as the eye pass
-    /// left them: computed natively by the shared index over read-back buffers
+    /// What the global map's gathers at every `stride`-th of the first `count` paths of `fb`
+    /// visit and find, from the index as it stands (after `record_index` ran) and the paths as
+    /// the eye pass left them: computed natively by the shared index over read-back buffers
     /// (`photon::Disc::test`: the photons a gather counts). Grid or kd index alike.
     pub fn query_stats(&self, pass: u32, fb: &FrameBuffers, count: u32, stride: u32) -> Result<QueryStats> {
         use kdray_shared::photon::{CellVisitor, Disc, HashGrid, KdCells, PhotonIndex, SortedPhotons};
@@ -685,7 +685,7 @@ impl<'t> PhotonMap<'t> {
                     return;
                 }
                 self.visited += 1;
-                self.found += (self.disc.test(w).0 && w.x & kdray_shared::photon::WORD_CAUSTIC == 0) as u64;
+                self.found += self.disc.test(w).0 as u64;
             }
         }
         let rt = self.t.rt;
@@ -693,16 +693,14 @@ impl<'t> PhotonMap<'t> {
         let (words, offsets) = (rt.read(&self.sorted, self.sorted.len())?, rt.read(&self.sort.offsets, self.sort.offsets.len())?);
         let sorted = SortedPhotons { words: &words, offsets: &offsets };
         let (rays, paths) = (rt.read(&fb.rays, count as usize)?, rt.read(&fb.paths, count as usize)?);
-        let r0 = p.radius[0];
-        // The radius a gather visits the cells within (`photon::irradiance`).
-        let r = if p.maps > 1 { r0.max(p.radius[1]) } else { r0 };
+        let r = p.radius[0];
         let mut s = QueryStats::default();
         // `per_step`: words a gather step takes (the grid's `HashGrid::visit`: `GRID_STEP`, padding
         // included; the kd index's leaves: one).
         let mut run = |per_step: u64, index: &dyn Fn(&mut Count)| {
             let gather = |k: usize| {
                 (paths[k].flags & kdray_shared::PATH_GATHER != 0).then(|| {
-                    let mut c = Count { disc: Disc::new(&p, rays[k].origin, rays[k].dir, r0), visited: 0, found: 0, words: 0 };
+                    let mut c = Count { disc: Disc::new(&p, rays[k].origin, rays[k].dir, r), visited: 0, found: 0, words: 0 };
                     index(&mut c);
                     c
                 })
@@ -731,18 +729,18 @@ impl<'t> PhotonMap<'t> {
         match &self.kd {
             None => {
                 let grid = HashGrid::new(&p);
-                run(kdray_shared::photon::GRID_STEP as u64, &|c| grid.visit(c.disc.x, r, &sorted, c));
+                run(kdray_shared::photon::GRID_STEP as u64, &|c| grid.visit(c.disc.x, r, 0, &sorted, c));
             }
             Some((_, leaves, nodes)) => {
                 let (nodes, leaves) = (rt.read(nodes, nodes.len())?, rt.read(leaves, leaves.len())?);
                 let kd = KdCells::new(&p, &nodes, &leaves);
-                run(1, &|c| kd.visit(c.disc.x, r, &sorted, c));
+                run(1, &|c| kd.visit(c.disc.x, r, 0, &sorted, c));
             }
         }
         Ok(s)
     }
 
-    /// Cells and slots (capacity) of the index.
+    /// Cells per map and slots (capacity) of the index.
     pub fn index_size(&self) -> (u32, u32) {
         (self.cells, self.capacity)
     }
@@ -885,7 +883,7 @@ pub struct QueryStats {
     pub points: u64,
     /// Photons their gathers tested (read from the index's cells).
     pub visited: u64,
-    /// Photons of the global map that counted (within its radius, on the point's side).
+    /// Photons that counted (within the radius, on the point's side).
     pub found: u64,
     /// Steps (the grid's `GRID_STEP` photons each, `HashGrid::visit`'s; the kd index's one) of the
     /// gather points of sampled groups of 32 consecutive paths (a subgroup's, on the GPU), summed over those points.
