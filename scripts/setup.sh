@@ -51,6 +51,7 @@ fi
 # Whether any of the paths (globs expanded) exists. (`ls a b` fails when any one is missing:
 # with it these checks reinstalled what was there.)
 any_exists() {
+  local f
   for f in "$@"; do
     [ -e "$f" ] && return 0
   done
@@ -70,10 +71,12 @@ if [ "${1:-}" = "--mpi" ]; then
     packages+=(openmpi-bin libopenmpi-dev)
   fi
   # libclang itself (libclang.so*, libclang-N*.so*), not libclang-cpp, which bindgen cannot use
-  # and which a machine with LLVM may have alone (CI failed so on a fresh machine, 2026-12-06).
+  # and which a machine with LLVM may have alone (CI failed so on a fresh machine, 2026-12-06),
+  # and clang's own headers (stddef.h), which bindgen needs for mpi.h and a runtime-only
+  # libclang lacks.
   if ! any_exists /usr/lib/llvm-*/lib/libclang.so* /usr/lib/llvm-*/lib/libclang-[0-9]*.so* /usr/lib/x86_64-linux-gnu/libclang.so* \
-    /usr/lib/x86_64-linux-gnu/libclang-[0-9]*.so*; then
-    echo "setup: no libclang found: installing libclang-dev (the mpi crate's bindings)"
+    /usr/lib/x86_64-linux-gnu/libclang-[0-9]*.so* || ! any_exists /usr/lib/llvm-*/lib/clang/*/include/stddef.h; then
+    echo "setup: no libclang with clang's headers found: installing libclang-dev (the mpi crate's bindings)"
     packages+=(libclang-dev)
   fi
 fi
