@@ -118,6 +118,8 @@ pub struct PhotonOptions {
     /// of 2r), or 5, 7 (the default) or 9 (cells of r across x, of r/2, r/3 or r/4 along it);
     /// rows along x clipped to the query's sphere; see `kdray_shared::photon::HashGrid`.
     pub grid_window: u32,
+    /// The caustic map's window, as `grid_window` (cells of its own radius): 2 by default.
+    pub caustic_window: u32,
     /// 0: independent photons; otherwise groups of 32 with lattice offsets of this spread
     /// (`COHERENT_SPREAD` by default).
     pub spread: f32,
@@ -179,6 +181,7 @@ impl Default for PhotonOptions {
             alpha: 2.0 / 3.0,
             index: IndexKind::Grid,
             grid_window: 7,
+            caustic_window: 2,
             spread: COHERENT_SPREAD,
             photon_direct: false,
             final_gather: FinalGather::Edges,
@@ -377,8 +380,10 @@ impl<'t> PhotonMap<'t> {
         if o.final_gather == FinalGather::Edges && !(1..=8).contains(&o.edge_levels) {
             bail!(InvalidInput: "the final gather's levels must be between 1 and 8, got {}", o.edge_levels);
         }
-        if !kdray_shared::photon::GRID_WINDOWS.contains(&o.grid_window) {
-            bail!(InvalidInput: "the photon grid's window must be one of {:?} cells, got {}", kdray_shared::photon::GRID_WINDOWS, o.grid_window);
+        for (what, window) in [("", o.grid_window), ("caustic ", o.caustic_window)] {
+            if !kdray_shared::photon::GRID_WINDOWS.contains(&window) {
+                bail!(InvalidInput: "the photon grid's {what}window must be one of {:?} cells, got {window}", kdray_shared::photon::GRID_WINDOWS);
+            }
         }
         if let Some(r) = o.radius {
             if !(r.is_finite() && r > 0.0) {
@@ -413,8 +418,9 @@ impl<'t> PhotonMap<'t> {
                 Some((leaf_boxes(&tree.nodes, tree.bounds.min, tree.bounds.max), rt.alloc("kd leaf cells", tree.nodes.len())?, nodes))
             }
         };
-        let cells = Self::cells_for(o.index, capacity, o.grid_window, Self::leaf_count(&kd))?;
-        let sort = Self::sort_for(rt, o.index, o.grid_window, cells, maps, capacity)?;
+        let windows = [o.grid_window, o.caustic_window];
+        let cells = Self::cells_for(o.index, capacity, windows, maps, Self::leaf_count(&kd))?;
+        let sort = Self::sort_for(rt, o.index, windows, cells, maps, capacity)?;
         Ok(PhotonMap {
             t,
             accel,
@@ -441,16 +447,15 @@ impl<'t> PhotonMap<'t> {
         })
     }
 
-    /// Cells per map: the grid's buckets (a power of two of blocks of wx·w² cells,
-    /// `grid_windows`, about the photon count), or the kd index's budget: twice the photons,
+    /// Cells per map: the grid's buckets (a power of two of blocks of wx·w² cells, the larger
+    /// of the maps' `windows`, `grid_block`, about the photon count), or the kd index's budget: twice the photons,
     /// and at least a cell per leaf of the tree (`leaves`; `leaf_cells` gives every leaf one at
     /// the least, so with fewer cells than leaves the leaves' cells would run past the
     /// offsets).
-    fn cells_for(kind: IndexKind, capacity: u32, window: u32, leaves: u32) -> Result<u32> {
+    fn cells_for(kind: IndexKind, capacity: u32, windows: [u32; 2], maps: u32, leaves: u32) -> Result<u32> {
         Ok(match kind {
             IndexKind::Grid => {
-                let [wx, w] = kdray_shared::photon::grid_windows(window);
-                let block = wx * w * w;
+                let block = kdray_shared::photon::grid_block(&IndexParams { grid: windows, maps, ..Default::default() });
                 capacity.div_ceil(block).next_power_of_two().min(1 << 25) * block
             }
             IndexKind::Kd => {
@@ -472,10 +477,10 @@ impl<'t> PhotonMap<'t> {
     /// The index's counting sort, as the kernels expect it (`photon::sort_params`: by segments
     /// of a grid block's wx·w² cells, each row of a gather's window within a block then one
     /// run; exact offsets for the kd index).
-    fn sort_for(rt: &'t dyn Runtime, kind: IndexKind, window: u32, cells: u32, maps: u32, capacity: u32) -> Result<CountingSort<'t>> {
+    fn sort_for(rt: &'t dyn Runtime, kind: IndexKind, windows: [u32; 2], cells: u32, maps: u32, capacity: u32) -> Result<CountingSort<'t>> {
         let keys = cells.checked_mul(maps).ok_or_else(|| err!(TooLarge: "too many photon cells"))?;
         let kind = if kind == IndexKind::Kd { INDEX_KD } else { INDEX_GRID };
-        match kdray_shared::photon::sort_params(&IndexParams { kind, grid: window, cells, maps, ..Default::default() }).segment {
+        match kdray_shared::photon::sort_params(&IndexParams { kind, grid: windows, cells, maps, ..Default::default() }).segment {
             0 => CountingSort::new(rt, keys, capacity),
             seg => CountingSort::segmented(rt, keys, seg, capacity),
         }
@@ -488,8 +493,9 @@ impl<'t> PhotonMap<'t> {
         self.sorted = rt.alloc("sorted photon", capacity as usize)?;
         self.keys = rt.alloc("photon cell", capacity as usize)?;
         self.capacity = capacity;
-        self.cells = Self::cells_for(self.o.index, capacity, self.o.grid_window, Self::leaf_count(&self.kd))?;
-        self.sort = Self::sort_for(rt, self.o.index, self.o.grid_window, self.cells, self.maps, capacity)?;
+        let windows = [self.o.grid_window, self.o.caustic_window];
+        self.cells = Self::cells_for(self.o.index, capacity, windows, self.maps, Self::leaf_count(&self.kd))?;
+        self.sort = Self::sort_for(rt, self.o.index, windows, self.cells, self.maps, capacity)?;
         Ok(())
     }
 
@@ -602,7 +608,7 @@ impl<'t> PhotonMap<'t> {
             maps: self.maps,
             radius: [r, r * self.o.caustic_radius],
             filter: self.o.filter,
-            grid: self.o.grid_window,
+            grid: [self.o.grid_window, self.o.caustic_window],
             bounds_min: self.bounds.0,
             bounds_max: self.bounds.1,
             power_top: self.power_top,
@@ -665,11 +671,11 @@ impl<'t> PhotonMap<'t> {
         }
     }
 
-    /// What the global map's gathers at every `stride`-th of the first `count` paths of `fb`
-    /// visit and find, from the index as it stands (after `record_index` ran) and the paths as
+    /// What the gathers of map `map` (0 global, 1 caustic; a map the index lacks has none) at
+    /// every `stride`-th of the first `count` paths of `fb` visit and find, from the index as it stands (after `record_index` ran) and the paths as
     /// the eye pass left them: computed natively by the shared index over read-back buffers
     /// (`photon::Disc::test`: the photons a gather counts). Grid or kd index alike.
-    pub fn query_stats(&self, pass: u32, fb: &FrameBuffers, count: u32, stride: u32) -> Result<QueryStats> {
+    pub fn query_stats(&self, pass: u32, fb: &FrameBuffers, count: u32, stride: u32, map: u32) -> Result<QueryStats> {
         use kdray_shared::photon::{CellVisitor, Disc, HashGrid, KdCells, PhotonIndex, SortedPhotons};
         struct Count {
             disc: Disc,
@@ -693,8 +699,11 @@ impl<'t> PhotonMap<'t> {
         let (words, offsets) = (rt.read(&self.sorted, self.sorted.len())?, rt.read(&self.sort.offsets, self.sort.offsets.len())?);
         let sorted = SortedPhotons { words: &words, offsets: &offsets };
         let (rays, paths) = (rt.read(&fb.rays, count as usize)?, rt.read(&fb.paths, count as usize)?);
-        let r = p.radius[0];
         let mut s = QueryStats::default();
+        if map >= p.maps {
+            return Ok(s);
+        }
+        let r = p.radius[map as usize];
         // `per_step`: words a gather step takes (the grid's `HashGrid::visit`: `GRID_STEP`, padding
         // included; the kd index's leaves: one).
         let mut run = |per_step: u64, index: &dyn Fn(&mut Count)| {
@@ -729,12 +738,12 @@ impl<'t> PhotonMap<'t> {
         match &self.kd {
             None => {
                 let grid = HashGrid::new(&p);
-                run(kdray_shared::photon::GRID_STEP as u64, &|c| grid.visit(c.disc.x, r, 0, &sorted, c));
+                run(kdray_shared::photon::GRID_STEP as u64, &|c| grid.visit(c.disc.x, r, map, &sorted, c));
             }
             Some((_, leaves, nodes)) => {
                 let (nodes, leaves) = (rt.read(nodes, nodes.len())?, rt.read(leaves, leaves.len())?);
                 let kd = KdCells::new(&p, &nodes, &leaves);
-                run(1, &|c| kd.visit(c.disc.x, r, 0, &sorted, c));
+                run(1, &|c| kd.visit(c.disc.x, r, map, &sorted, c));
             }
         }
         Ok(s)
