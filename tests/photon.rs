@@ -211,7 +211,7 @@ fn check_index(map: &PhotonMap, tree: &KdTreeData, records: &[Photon], what: &st
     // Points near photons, some of them on the grid's cell boundaries (where a gather that
     // trims its cells to the sphere must not lose a photon to rounding) or a radius away from
     // a photon along an axis.
-    let cell_size = |m: u32, axis: usize| p.radius[m as usize] * 2.0 / (kdray_shared::photon::grid_windows(p.grid[m as usize])[axis.min(1)] - 1) as f32;
+    let cell_size = |m: u32, axis: usize| p.radius[m as usize] * 2.0 / (kdray_shared::photon::grid_windows(p.grid)[axis.min(1)] - 1) as f32;
     let snap = |x: f32, o: f32, c: f32| o + ((x - o) / c).round() * c;
     for (k, (ph, m)) in placed.iter().step_by((placed.len() / 1200).max(1)).enumerate() {
         let m = *m;
@@ -324,7 +324,7 @@ fn gathers_find_what_brute_force_counts_at_radii_of_a_few_word_steps() {
                     kdray_shared::IndexParams { kind: INDEX_KD, cells: d * d * d, radius: [r, r], ..base }
                 } else {
                     let [wx, w] = kdray_shared::photon::grid_windows(grid);
-                    kdray_shared::IndexParams { kind: kdray_shared::INDEX_GRID, grid: [grid, grid], cells: 64 * wx * w * w, radius: [r, r], ..base }
+                    kdray_shared::IndexParams { kind: kdray_shared::INDEX_GRID, grid, cells: 64 * wx * w * w, radius: [r, r], ..base }
                 };
                 let nodes = [kdray_shared::kdtree::KdNode::leaf(0, 0)];
                 let leaves = [kdray_shared::LeafCells { lo: min, base: 0, hi: max, dims: 37 | 37 << 10 | 37 << 20 }];
@@ -558,11 +558,9 @@ fn photon_indices_hold_every_photon_in_its_cell_and_gather_like_brute_force() {
         let tr = tree(&s);
         for rt in runtimes() {
             let t = Tracer::new(rt, &s, Some(&tr)).unwrap();
-            // Each grid window for the global map, with a caustic map's window smaller, equal
-            // or larger (its blocks then set the buckets a block: `photon::grid_block`).
-            for (kind, grid_window, caustic_window) in [(IndexKind::Grid, 3, 2), (IndexKind::Grid, 2, 7), (IndexKind::Grid, 5, 9), (IndexKind::Grid, 7, 2), (IndexKind::Grid, 9, 3), (IndexKind::Grid, 7, 7), (IndexKind::Kd, 3, 2)] {
-                let what = format!("{spec} on {}, {kind:?} index, windows {grid_window}, {caustic_window}", rt.name());
-                let o = PhotonOptions { grid_window, caustic_window, ..small_options(kind, 20_000) };
+            for (kind, grid_window) in [(IndexKind::Grid, 3), (IndexKind::Grid, 2), (IndexKind::Grid, 5), (IndexKind::Grid, 7), (IndexKind::Grid, 9), (IndexKind::Kd, 3)] {
+                let what = format!("{spec} on {}, {kind:?} index, window {grid_window}", rt.name());
+                let o = PhotonOptions { grid_window, ..small_options(kind, 20_000) };
                 let mut map = PhotonMap::new(&t, Accel::kd(Algorithm::ShortStack(3)), Some(&tr), &s, o).unwrap();
                 let stored = map.trace_and_index(0).unwrap();
                 let records = map.read_records().unwrap();

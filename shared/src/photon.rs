@@ -782,9 +782,8 @@ pub fn gather_slack(p: &IndexParams) -> f32 {
 /// (x) cells of 2r/(wx − 1), as fine or finer (wx = w, or 5, 7 or 9 cells of r/2, r/3 or r/4
 /// with w = 3), so a disc of radius r overlaps at most wx × w × w cells. Cells are grouped in
 /// blocks of wx × w × w; a block is hashed to one of `blocks` slots (a power of two) and a
-/// cell's bucket is its block's slot times `seg` (`grid_block`: wx·w², the larger of the two
-/// maps' where their windows differ) plus its place in the block (coordinates modulo wx, w and
-/// w). Any wx consecutive cells along x (w along y or z) differ modulo wx (w),
+/// cell's bucket is its block's slot times wx·w² plus its place in the block (coordinates
+/// modulo wx, w and w). Any wx consecutive cells along x (w along y or z) differ modulo wx (w),
 /// so the cells of one query never share a bucket: each is visited once, with no bookkeeping.
 /// A block's cells are sorted together, as one segment (`sort::segment_offsets`: its offsets at
 /// `offset_slot`), so that each row of a window within a block is one run, however many cells
@@ -801,15 +800,12 @@ pub fn gather_slack(p: &IndexParams) -> f32 {
 pub struct HashGrid {
     /// The scene box's minimum corner; cells are counted from one cell below it.
     pub origin: [f32; 3],
-    /// Buckets per map: `blocks` × `seg`.
+    /// Buckets per map: `blocks` × wx·w².
     pub cells: u32,
-    /// Per map (global, caustic): cells along x of a query's window (2, 3, 5, 7 or 9).
-    pub wx: [u32; 2],
-    /// Per map: cells along y and along z of a query's window (2 or 3).
-    pub w: [u32; 2],
-    /// Buckets of a block, the same for both maps (`grid_block`): a map's block of wx·w²
-    /// cells takes the first of them.
-    pub seg: u32,
+    /// Cells along x of a query's window (2, 3, 5, 7 or 9).
+    pub wx: u32,
+    /// Cells along y and along z of a query's window (2 or 3).
+    pub w: u32,
     /// Hashed slots of blocks per map (a power of two).
     pub blocks: u32,
     /// Per map (global, caustic): the cell size along x, and along y and z.
@@ -821,9 +817,8 @@ pub struct HashGrid {
 /// The values of `IndexParams::grid` (a grid's cells along x a query visits: `grid_windows`).
 pub const GRID_WINDOWS: [u32; 5] = [2, 3, 5, 7, 9];
 
-/// The windows (cells along x, and along y and z, a query visits) of a map's
-/// `IndexParams::grid` g (one of `GRID_WINDOWS`): (2, 2) for g = 2; (g, 3) for g = 5, 7 or 9;
-/// (3, 3) otherwise.
+/// The windows (cells along x, and along y and z, a query visits) of `IndexParams::grid`
+/// g (one of `GRID_WINDOWS`): (2, 2) for g = 2; (g, 3) for g = 5, 7 or 9; (3, 3) otherwise.
 #[inline(always)]
 pub fn grid_windows(grid: u32) -> [u32; 2] {
     if grid == 2 {
@@ -835,20 +830,6 @@ pub fn grid_windows(grid: u32) -> [u32; 2] {
     }
 }
 
-/// The grid's buckets a block (the sort's segment, `sort_params`): the larger window's wx·w²
-/// of the index's maps (`grid_windows`), so that each map's block fits in one.
-#[inline(always)]
-pub fn grid_block(p: &IndexParams) -> u32 {
-    let mut seg = 0;
-    let mut m = 0;
-    while m < p.maps.clamp(1, 2) {
-        let [wx, w] = grid_windows(p.grid[m as usize]);
-        seg = seg.max(wx * w * w);
-        m += 1;
-    }
-    seg
-}
-
 impl HashGrid {
     /// The grid of `p`: origin `bounds_min`, `cells` buckets, cells of 2s/(wx − 1) along x and
     /// 2s/(w − 1) along y and z for each map's radius r, s its `reach` widened once more
@@ -857,23 +838,14 @@ impl HashGrid {
     /// `coord` counts them exactly in `f32`).
     #[inline(always)]
     pub fn new(p: &IndexParams) -> HashGrid {
-        let ([wx0, w0], [wx1, w1]) = (grid_windows(p.grid[0]), grid_windows(p.grid[1]));
+        let [wx, w] = grid_windows(p.grid);
+        let (kx, k) = (2.0 / (wx - 1) as f32, 2.0 / (w - 1) as f32);
         let slack = gather_slack(p);
-        let size = |r: f32, wx: u32, w: u32| {
+        let size = |r: f32| {
             let s = fma(r, 2e-5, r) + 2.0 * slack;
-            [2.0 / (wx - 1) as f32 * s, 2.0 / (w - 1) as f32 * s]
+            [kx * s, k * s]
         };
-        let seg = grid_block(p);
-        HashGrid {
-            origin: p.bounds_min,
-            cells: p.cells,
-            wx: [wx0, wx1],
-            w: [w0, w1],
-            seg,
-            blocks: p.cells / seg,
-            cell_size: [size(p.radius[0], wx0, w0), size(p.radius[1], wx1, w1)],
-            slack,
-        }
+        HashGrid { origin: p.bounds_min, cells: p.cells, wx, w, blocks: p.cells / (wx * w * w), cell_size: [size(p.radius[0]), size(p.radius[1])], slack }
     }
     #[inline(always)]
     fn coord(&self, x: f32, o: f32, inv: f32) -> u32 {
@@ -882,10 +854,10 @@ impl HashGrid {
     }
     #[inline(always)]
     fn bucket(&self, c: [u32; 3], map: u32) -> u32 {
-        let (wx, w) = (self.wx[map as usize], self.w[map as usize]);
+        let (wx, w) = (self.wx, self.w);
         let h = pcg_hash((c[0] / wx) ^ pcg_hash((c[1] / w) ^ pcg_hash(c[2] / w)));
         let place = c[0] % wx + wx * (c[1] % w + w * (c[2] % w));
-        (h & (self.blocks - 1)) * self.seg + place + map * self.cells
+        (h & (self.blocks - 1)) * (wx * w * w) + place + map * self.cells
     }
 }
 
@@ -902,7 +874,7 @@ impl PhotonIndex for HashGrid {
         let s = self.cell_size[map as usize];
         let (ix, i, c) = (1.0 / s[0], 1.0 / s[1], s[1]);
         let o = self.origin;
-        let (wx, w) = (self.wx[map as usize], self.w[map as usize]);
+        let (wx, w) = (self.wx, self.w);
         // Every photon `Disc::test` may count lies within the reach (`reach`).
         let r = reach(r, self.slack);
         let lo = [self.coord(x[0] - r, o[0], ix), self.coord(x[1] - r, o[1], i), self.coord(x[2] - r, o[2], i)];
@@ -915,10 +887,10 @@ impl PhotonIndex for HashGrid {
         ];
         // Along x, the cells of one block are consecutive buckets: a row of the window is one
         // run, or two where it crosses into the next block. The block hash is nested as in
-        // `bucket`. Offsets come by segments of a block's `seg` buckets (`offset_slot`), one
+        // `bucket`. Offsets come by segments of a block's wx·w² cells (`offset_slot`), one
         // more entry each.
         let first_block = map * self.blocks;
-        let seg = self.seg;
+        let seg = wx * w * w;
         let (qx0, mx0) = (lo[0] / wx, lo[0] % wx);
         // Each row (y, z) is clipped to the sphere: at distance d from x its rectangle across
         // y and z holds photons within r only along the chord x ± √(r² − d²), and none where
@@ -1191,7 +1163,8 @@ pub fn keys<I: PhotonIndex, K: Store<u32> + ?Sized, C: AtomicStore + ?Sized, S: 
 /// hashed grid (`sort::segment_offsets`), exact for the kd index.
 #[inline(always)]
 pub fn sort_params(p: &IndexParams) -> SortParams {
-    SortParams { count: p.count, cells: p.cells * p.maps, segment: if p.kind == INDEX_KD { 0 } else { grid_block(p) }, _pad: 0 }
+    let [wx, w] = grid_windows(p.grid);
+    SortParams { count: p.count, cells: p.cells * p.maps, segment: if p.kind == INDEX_KD { 0 } else { wx * w * w }, _pad: 0 }
 }
 
 /// Where the offset of cell `cell` is: the hashed grid's offsets come by segments of a block's

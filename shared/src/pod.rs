@@ -463,10 +463,10 @@ pub struct IndexParams {
     pub radius: [f32; 2],
     /// `FILTER_*`.
     pub filter: u32,
-    /// The hashed grid's window of the global and of the caustic map (`photon::HashGrid`,
-    /// `photon::grid_windows`): 3 (cells of size r), 2 (cells of 2r), or 5, 7 or 9 (cells of r
-    /// across the rows, r/2, r/3 or r/4 along them).
-    pub grid: [u32; 2],
+    /// The hashed grid's window (`photon::HashGrid`, `photon::grid_windows`): 3 (cells of size
+    /// r), 2 (cells of 2r), or 5, 7 or 9 (cells of r across the rows, r/2, r/3 or r/4 along
+    /// them).
+    pub grid: u32,
     /// The scene box (the grid's origin, the kd-tree's root cell).
     pub bounds_min: [f32; 3],
     /// The first map a gather sums (maps `first_map..maps`): 0 for all, 1 for the caustic map
@@ -482,7 +482,7 @@ pub struct IndexParams {
     /// powers below 1). The host sets it from the lights' power per emitted photon.
     pub power_top: i32,
     /// Padding to a 16-byte multiple.
-    pub _pad: [u32; 2],
+    pub _pad: [u32; 3],
 }
 
 /// `IndexParams::gather_flags`: final gathering near edges only. A gather point marked

@@ -118,8 +118,6 @@ pub struct PhotonOptions {
     /// of 2r), or 5, 7 (the default) or 9 (cells of r across x, of r/2, r/3 or r/4 along it);
     /// rows along x clipped to the query's sphere; see `kdray_shared::photon::HashGrid`.
     pub grid_window: u32,
-    /// The caustic map's window, as `grid_window` (cells of its own radius): 2 by default.
-    pub caustic_window: u32,
     /// 0: independent photons; otherwise groups of 32 with lattice offsets of this spread
     /// (`COHERENT_SPREAD` by default).
     pub spread: f32,
@@ -181,7 +179,6 @@ impl Default for PhotonOptions {
             alpha: 2.0 / 3.0,
             index: IndexKind::Grid,
             grid_window: 7,
-            caustic_window: 2,
             spread: COHERENT_SPREAD,
             photon_direct: false,
             final_gather: FinalGather::Edges,
@@ -380,10 +377,8 @@ impl<'t> PhotonMap<'t> {
         if o.final_gather == FinalGather::Edges && !(1..=8).contains(&o.edge_levels) {
             bail!(InvalidInput: "the final gather's levels must be between 1 and 8, got {}", o.edge_levels);
         }
-        for (what, window) in [("", o.grid_window), ("caustic ", o.caustic_window)] {
-            if !kdray_shared::photon::GRID_WINDOWS.contains(&window) {
-                bail!(InvalidInput: "the photon grid's {what}window must be one of {:?} cells, got {window}", kdray_shared::photon::GRID_WINDOWS);
-            }
+        if !kdray_shared::photon::GRID_WINDOWS.contains(&o.grid_window) {
+            bail!(InvalidInput: "the photon grid's window must be one of {:?} cells, got {}", kdray_shared::photon::GRID_WINDOWS, o.grid_window);
         }
         if let Some(r) = o.radius {
             if !(r.is_finite() && r > 0.0) {
@@ -418,9 +413,8 @@ impl<'t> PhotonMap<'t> {
                 Some((leaf_boxes(&tree.nodes, tree.bounds.min, tree.bounds.max), rt.alloc("kd leaf cells", tree.nodes.len())?, nodes))
             }
         };
-        let windows = [o.grid_window, o.caustic_window];
-        let cells = Self::cells_for(o.index, capacity, windows, maps, Self::leaf_count(&kd))?;
-        let sort = Self::sort_for(rt, o.index, windows, cells, maps, capacity)?;
+        let cells = Self::cells_for(o.index, capacity, o.grid_window, Self::leaf_count(&kd))?;
+        let sort = Self::sort_for(rt, o.index, o.grid_window, cells, maps, capacity)?;
         Ok(PhotonMap {
             t,
             accel,
@@ -447,15 +441,16 @@ impl<'t> PhotonMap<'t> {
         })
     }
 
-    /// Cells per map: the grid's buckets (a power of two of blocks of wx·w² cells, the larger
-    /// of the maps' `windows`, `grid_block`, about the photon count), or the kd index's budget: twice the photons,
+    /// Cells per map: the grid's buckets (a power of two of blocks of wx·w² cells,
+    /// `grid_windows`, about the photon count), or the kd index's budget: twice the photons,
     /// and at least a cell per leaf of the tree (`leaves`; `leaf_cells` gives every leaf one at
     /// the least, so with fewer cells than leaves the leaves' cells would run past the
     /// offsets).
-    fn cells_for(kind: IndexKind, capacity: u32, windows: [u32; 2], maps: u32, leaves: u32) -> Result<u32> {
+    fn cells_for(kind: IndexKind, capacity: u32, window: u32, leaves: u32) -> Result<u32> {
         Ok(match kind {
             IndexKind::Grid => {
-                let block = kdray_shared::photon::grid_block(&IndexParams { grid: windows, maps, ..Default::default() });
+                let [wx, w] = kdray_shared::photon::grid_windows(window);
+                let block = wx * w * w;
                 capacity.div_ceil(block).next_power_of_two().min(1 << 25) * block
             }
             IndexKind::Kd => {
@@ -477,10 +472,10 @@ impl<'t> PhotonMap<'t> {
     /// The index's counting sort, as the kernels expect it (`photon::sort_params`: by segments
     /// of a grid block's wx·w² cells, each row of a gather's window within a block then one
     /// run; exact offsets for the kd index).
-    fn sort_for(rt: &'t dyn Runtime, kind: IndexKind, windows: [u32; 2], cells: u32, maps: u32, capacity: u32) -> Result<CountingSort<'t>> {
+    fn sort_for(rt: &'t dyn Runtime, kind: IndexKind, window: u32, cells: u32, maps: u32, capacity: u32) -> Result<CountingSort<'t>> {
         let keys = cells.checked_mul(maps).ok_or_else(|| err!(TooLarge: "too many photon cells"))?;
         let kind = if kind == IndexKind::Kd { INDEX_KD } else { INDEX_GRID };
-        match kdray_shared::photon::sort_params(&IndexParams { kind, grid: windows, cells, maps, ..Default::default() }).segment {
+        match kdray_shared::photon::sort_params(&IndexParams { kind, grid: window, cells, maps, ..Default::default() }).segment {
             0 => CountingSort::new(rt, keys, capacity),
             seg => CountingSort::segmented(rt, keys, seg, capacity),
         }
@@ -493,9 +488,8 @@ impl<'t> PhotonMap<'t> {
         self.sorted = rt.alloc("sorted photon", capacity as usize)?;
         self.keys = rt.alloc("photon cell", capacity as usize)?;
         self.capacity = capacity;
-        let windows = [self.o.grid_window, self.o.caustic_window];
-        self.cells = Self::cells_for(self.o.index, capacity, windows, self.maps, Self::leaf_count(&self.kd))?;
-        self.sort = Self::sort_for(rt, self.o.index, windows, self.cells, self.maps, capacity)?;
+        self.cells = Self::cells_for(self.o.index, capacity, self.o.grid_window, Self::leaf_count(&self.kd))?;
+        self.sort = Self::sort_for(rt, self.o.index, self.o.grid_window, self.cells, self.maps, capacity)?;
         Ok(())
     }
 
@@ -608,7 +602,7 @@ impl<'t> PhotonMap<'t> {
             maps: self.maps,
             radius: [r, r * self.o.caustic_radius],
             filter: self.o.filter,
-            grid: [self.o.grid_window, self.o.caustic_window],
+            grid: self.o.grid_window,
             bounds_min: self.bounds.0,
             bounds_max: self.bounds.1,
             power_top: self.power_top,

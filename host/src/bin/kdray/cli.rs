@@ -344,9 +344,6 @@ pub enum Command {
         /// of a half, a third or a quarter of it along x).
         #[arg(long, default_value_t = 7)]
         grid_window: u32,
-        /// The caustic map's window, as --grid-window (cells of the caustic map's radius).
-        #[arg(long, default_value_t = 2)]
-        caustic_window: u32,
         /// A pass per bounce and query (camera or emission, then closest-hit query, shading,
         /// shadow query per bounce: the wavefront schedule) instead of whole photon and eye
         /// paths in one kernel each (path, photon; the same paths).
@@ -611,7 +608,6 @@ pub fn run(cli: Cli) -> Result<()> {
             final_gather,
             filter,
             grid_window,
-            caustic_window,
             split_passes,
             photon_threads,
             gather_every_path,
@@ -712,7 +708,6 @@ pub fn run(cli: Cli) -> Result<()> {
                 list_points: !gather_every_path,
                 edge_levels: final_gather_levels,
                 grid_window,
-                caustic_window,
                 caustic_radius: 0.5,
                 eye_bounces: bounces,
                 eye_samples: spp,

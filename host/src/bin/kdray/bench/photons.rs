@@ -7,8 +7,9 @@
 //! first hit and storing nothing: where its time goes), the photon index's build time (hashed
 //! grid and kd leaves), and the eye pass and the gather at the benchmark's resolution (grid of
 //! cells r and of 2r, kd leaves; what a gather finds and tests per point, and the grid's gather
-//! again at the radius that finds about 50 photons a point, and over eye paths in 8×8 tiles of
-//! pixels instead of rows), and a final gather's eye pass (eye paths, resumed to a
+//! again at the radius that finds about 50 photons a point — there also the caustic map's
+//! photons found and tested per point and its subgroup balance, where the scene has one — and
+//! over eye paths in 8×8 tiles of pixels instead of rows), and a final gather's eye pass (eye paths, resumed to a
 //! second point with its shadow ray, gathered there: BVH, grid). Times are wall time per pass of several passes recorded into
 //! one submission (launch overhead amortised, every clear and dispatch included); on a GPU
 //! the first scene's row is measured twice, the first time discarded (a warm-up).
