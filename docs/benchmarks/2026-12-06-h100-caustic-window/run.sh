@@ -1,5 +1,6 @@
 #!/bin/bash
 # r20: D = main (530dc96); C = the caustic map's own grid window (default 2: 2x2 rows of cubes of 2r_c), c7104a7; C7 = C with --caustic-window 7 (main's window for both maps), C3 likewise 3; M = C plus both maps' runs listed first and walked in one photon loop
+# (sum.py, cmp.py and pfm.py: those of ../2026-12-06-h100-one-index/, copied beside it on the device)
 H=$(cd "$(dirname "$0")" && pwd)
 W=/tmp/w; mkdir -p $W
 for v in D C M; do gunzip -c $H/$v.gz > $W/$v; chmod +x $W/$v; done
