@@ -666,9 +666,10 @@ impl<'t> PhotonMap<'t> {
     }
 
     /// What the gathers of map `map` (0 global, 1 caustic; a map the index lacks has none) at
-    /// every `stride`-th of the first `count` paths of `fb` visit and find, from the index as it stands (after `record_index` ran) and the paths as
-    /// the eye pass left them: computed natively by the shared index over read-back buffers
-    /// (`photon::Disc::test`: the photons a gather counts). Grid or kd index alike.
+    /// every `stride`-th of the first `count` paths of `fb` visit and find, from the index as
+    /// it stands (after `record_index` ran) and the paths as the eye pass left them: computed
+    /// natively by the shared index over read-back buffers (`photon::Disc::test`: the photons a
+    /// gather counts). Grid or kd index alike.
     pub fn query_stats(&self, pass: u32, fb: &FrameBuffers, count: u32, stride: u32, map: u32) -> Result<QueryStats> {
         use kdray_shared::photon::{CellVisitor, Disc, HashGrid, KdCells, PhotonIndex, SortedPhotons};
         struct Count {

@@ -9,10 +9,11 @@
 //! cells r and of 2r, kd leaves; what a gather finds and tests per point, and the grid's gather
 //! again at the radius that finds about 50 photons a point — there also the caustic map's
 //! photons found and tested per point and its subgroup balance, where the scene has one — and
-//! over eye paths in 8×8 tiles of pixels instead of rows), and a final gather's eye pass (eye paths, resumed to a
-//! second point with its shadow ray, gathered there: BVH, grid). Times are wall time per pass of several passes recorded into
-//! one submission (launch overhead amortised, every clear and dispatch included); on a GPU
-//! the first scene's row is measured twice, the first time discarded (a warm-up).
+//! over eye paths in 8×8 tiles of pixels instead of rows), and a final gather's eye pass (eye
+//! paths, resumed to a second point with its shadow ray, gathered there: BVH, grid). Times are
+//! wall time per pass of several passes recorded into one submission (launch overhead
+//! amortised, every clear and dispatch included); on a GPU the first scene's row is measured
+//! twice, the first time discarded (a warm-up).
 //!
 //! Table 2 (`photons-error`): per scene at 512² (or `--size` if smaller), the error of
 //! progressive photon mapping (default, fixed radius, kd index, independent photons, direct
@@ -198,11 +199,11 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
             let g50t = time_recorded(rt, copies, &|c| rt.dispatch(c, &m50.gather(0, n as u32, &fb, &gp)))?;
             // How evenly a subgroup's 32 gathers (8 × 4 pixels) share its time at ~50 found.
             let balance = m50.query_stats(0, &fb, n as u32, 61, 0)?.group_balance();
-            let caustic_balance = m50.query_stats(0, &fb, n as u32, 61, 1)?;
+            let qc50t = m50.query_stats(0, &fb, n as u32, 61, 1)?;
             drop(m50);
             let mut gt = format!("{gt:.3} / {g50t:.3} ({balance:.2}");
-            if caustic_balance.points > 0 {
-                gt += &format!(", caustic {:.2}", caustic_balance.group_balance());
+            if qc50t.points > 0 {
+                gt += &format!(", caustic {:.2}", qc50t.group_balance());
             }
             gt += ")";
             // Eye paths to their first points, resumed to the second, the gather there (no
