@@ -713,8 +713,9 @@ impl SortedPhotons<'_> {
     #[inline(always)]
     pub fn run(&self, first: u32, end: u32) -> (u32, u32) {
         // Slots clamped to the table (an index's slots lie within it), so the loads need no
-        // bounds check: the render's gathers 1.3–1.6 % faster on the H100
-        // (docs/gpu-runs/2026-12-06-gather-hash-h100.md).
+        // bounds check: the render's gathers 1.3–1.6 % faster on the H100 than with the checks
+        // and the multiplicative block hash (`block_hash`; docs/gpu-runs/2026-12-06-gather-hash-h100.md,
+        // H → G).
         let n = self.offsets.len() as u32;
         if n == 0 {
             return (0, 0);
@@ -1011,10 +1012,11 @@ fn block_yz(qy: u32, qz: u32) -> u32 {
 
 /// The hashed slot, of `blocks` (a power of two), of the grid block (qx, qy, qz) whose
 /// `block_yz` is `yz`: multiplicative, with the high bits folded into the low ones. In place of
-/// three nested `pcg_hash`es (about 24 operations a slot against 6): the same images, at most
-/// 0.7 % more photons tested a point (more blocks share a slot), the glass sphere's gather in
-/// tiles at ~50 photons a point 3.6 % faster, the Cornell box's the same (H100,
-/// docs/gpu-runs/2026-12-06-gather-hash-h100.md).
+/// three nested `pcg_hash`es (a block's hash about 9 operations against 30; within a row of a
+/// gather, where y and z are hashed once, 6 a slot against 11): the same images, in the global
+/// map at most 0.7 % more photons tested a point, the glass sphere's gather in tiles at ~50
+/// photons a point 3.6 % faster, the Cornell box's the same, at the default radius 1–2 % slower
+/// (H100, docs/gpu-runs/2026-12-06-gather-hash-h100.md, D → H).
 #[inline(always)]
 fn block_hash(qx: u32, yz: u32, blocks: u32) -> u32 {
     let h = (qx.wrapping_mul(0xC2B2_AE35) ^ yz).wrapping_mul(0x27D4_EB2F);
