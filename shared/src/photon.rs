@@ -1241,16 +1241,14 @@ pub fn place<C: Store<u32> + ?Sized, W: Store<PhotonWord> + ?Sized>(
 // ---------------------------------------------------------------------------------------------
 // Gather
 
-/// A gather's disc: a point `x` with unit normal `n` (on the viewing side) and radius² `r2`,
-/// and the frame of the photon words it tests (`WordFrame`) with its `base` at `x`.
+/// A gather's disc: a point `x` with unit normal n (on the viewing side; held as its `units`),
+/// radius² `r2`, and the frame of the photon words it tests (`WordFrame`) with its `base` at `x`.
 #[derive(Copy, Clone, Debug)]
 pub struct Disc {
     /// The words' frame.
     pub frame: WordFrame,
     /// The centre.
     pub x: [f32; 3],
-    /// The unit normal on the viewing side.
-    pub n: [f32; 3],
     /// The radius, squared.
     pub r2: f32,
     /// `frame.base(x)`.
@@ -1266,7 +1264,7 @@ impl Disc {
     #[inline(always)]
     pub fn new(p: &IndexParams, x: [f32; 3], n: [f32; 3], r: f32) -> Disc {
         let frame = WordFrame::new(p);
-        Disc { frame, x, n, r2: r * r, base: frame.base(x), power_scale: power_scale(frame.power_top), units: normal_units(n) }
+        Disc { frame, x, r2: r * r, base: frame.base(x), power_scale: power_scale(frame.power_top), units: normal_units(n) }
     }
 
     /// Whether the photon of word `w` counts: within the radius, its surface's normal within 60°

@@ -665,12 +665,33 @@ impl<'t> PhotonMap<'t> {
         }
     }
 
-    /// What the gathers of map `map` (0 global, 1 caustic; a map the index lacks has none) at
+    /// What the gathers of each map (0 global, 1 caustic; a map the index lacks has none) at
     /// every `stride`-th of the first `count` paths of `fb` visit and find, from the index as
     /// it stands (after `record_index` ran) and the paths as the eye pass left them: computed
-    /// natively by the shared index over read-back buffers (`photon::Disc::test`: the photons a
-    /// gather counts). Grid or kd index alike.
-    pub fn query_stats(&self, pass: u32, fb: &FrameBuffers, count: u32, stride: u32, map: u32) -> Result<QueryStats> {
+    /// natively by the shared index over buffers read back once (`photon::Disc::test`: the
+    /// photons a gather counts). Grid or kd index alike.
+    pub fn query_stats(&self, pass: u32, fb: &FrameBuffers, count: u32, stride: u32) -> Result<[QueryStats; 2]> {
+        use kdray_shared::photon::SortedPhotons;
+        let rt = self.t.rt;
+        let p = self.index_params(pass, count);
+        let (words, offsets) = (rt.read(&self.sorted, self.sorted.len())?, rt.read(&self.sort.offsets, self.sort.offsets.len())?);
+        let sorted = SortedPhotons { words: &words, offsets: &offsets };
+        let (rays, paths) = (rt.read(&fb.rays, count as usize)?, rt.read(&fb.paths, count as usize)?);
+        let kd = match &self.kd {
+            None => None,
+            Some((_, leaves, nodes)) => Some((rt.read(nodes, nodes.len())?, rt.read(leaves, leaves.len())?)),
+        };
+        let mut stats = [QueryStats::default(); 2];
+        for (map, s) in stats.iter_mut().enumerate().take(p.maps as usize) {
+            Self::map_stats(&p, map as u32, &sorted, kd.as_ref(), &rays, &paths, count, stride, s);
+        }
+        Ok(stats)
+    }
+
+    /// `query_stats` of map `map` into `s`, over read-back buffers (`kd`: the kd index's nodes
+    /// and leaves, for a kd index).
+    #[allow(clippy::too_many_arguments)]
+    fn map_stats(p: &IndexParams, map: u32, sorted: &kdray_shared::photon::SortedPhotons, kd: Option<&(Vec<KdNode>, Vec<LeafCells>)>, rays: &[Ray], paths: &[kdray_shared::PathState], count: u32, stride: u32, s: &mut QueryStats) {
         use kdray_shared::photon::{CellVisitor, Disc, HashGrid, KdCells, PhotonIndex, SortedPhotons};
         struct Count {
             disc: Disc,
@@ -689,15 +710,7 @@ impl<'t> PhotonMap<'t> {
                 self.found += self.disc.test(w).0 as u64;
             }
         }
-        let rt = self.t.rt;
-        let p = self.index_params(pass, count);
-        let (words, offsets) = (rt.read(&self.sorted, self.sorted.len())?, rt.read(&self.sort.offsets, self.sort.offsets.len())?);
-        let sorted = SortedPhotons { words: &words, offsets: &offsets };
-        let (rays, paths) = (rt.read(&fb.rays, count as usize)?, rt.read(&fb.paths, count as usize)?);
-        let mut s = QueryStats::default();
-        if map >= p.maps {
-            return Ok(s);
-        }
+        let p = *p;
         let r = p.radius[map as usize];
         // `per_step`: words a gather step takes (the grid's `HashGrid::visit`: `GRID_STEP`, padding
         // included; the kd index's leaves: one).
@@ -730,18 +743,16 @@ impl<'t> PhotonMap<'t> {
                 s.group_steps += lanes * most;
             }
         };
-        match &self.kd {
+        match kd {
             None => {
                 let grid = HashGrid::new(&p);
-                run(kdray_shared::photon::GRID_STEP as u64, &|c| grid.visit(c.disc.x, r, map, &sorted, c));
+                run(kdray_shared::photon::GRID_STEP as u64, &|c| grid.visit(c.disc.x, r, map, sorted, c));
             }
-            Some((_, leaves, nodes)) => {
-                let (nodes, leaves) = (rt.read(nodes, nodes.len())?, rt.read(leaves, leaves.len())?);
-                let kd = KdCells::new(&p, &nodes, &leaves);
-                run(1, &|c| kd.visit(c.disc.x, r, map, &sorted, c));
+            Some((nodes, leaves)) => {
+                let kd = KdCells::new(&p, nodes, leaves);
+                run(1, &|c| kd.visit(c.disc.x, r, map, sorted, c));
             }
         }
-        Ok(s)
     }
 
     /// Cells per map and slots (capacity) of the index.

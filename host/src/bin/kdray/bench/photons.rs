@@ -171,15 +171,14 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
             let g = time_recorded(rt, copies, &|c| rt.dispatch(c, &grid.gather(0, n as u32, &fb, &gp)))?;
             // What a gather reads: photons found and tested per point (global map, every 61st
             // path), and the gather again at the radius that finds about 50 per point.
-            let qs = grid.query_stats(0, &fb, n as u32, 61, 0)?;
+            let [qs, _] = grid.query_stats(0, &fb, n as u32, 61)?;
             let r50 = grid.index_params(0, 1).radius[0] * (50.0 / qs.found_per_point().max(1.0)).sqrt() as f32;
             let mut m50 = PhotonMap::new(&t, accel, Some(tree), &scene, PhotonOptions { radius: Some(r50), ..base.clone() })?;
             m50.trace_and_index(0)?;
             let g50 = time_recorded(rt, copies, &|c| rt.dispatch(c, &m50.gather(0, n as u32, &fb, &gp)))?;
-            let qs50 = m50.query_stats(0, &fb, n as u32, 61, 0)?;
-            // The caustic map's gathers at the same points (its radius `caustic_radius` of the
-            // global map's), where the scene has one.
-            let qc50 = m50.query_stats(0, &fb, n as u32, 61, 1)?;
+            // With the caustic map's gathers at the same points (its radius `caustic_radius` of
+            // the global map's), where the scene has one.
+            let [qs50, qc50] = m50.query_stats(0, &fb, n as u32, 61)?;
             let per_point = format!("{:.1} / {:.1}", qs.found_per_point(), qs.visited_per_point());
             let mut at50 = format!("{g50:.3} ({:.1} / {:.1})", qs50.found_per_point(), qs50.visited_per_point());
             if qc50.points > 0 {
@@ -198,8 +197,8 @@ pub fn photons(o: &Options, all: &mut Scenes) -> Result<Vec<PathBuf>> {
             let gt = time_recorded(rt, copies, &|c| rt.dispatch(c, &grid.gather(0, n as u32, &fb, &gp)))?;
             let g50t = time_recorded(rt, copies, &|c| rt.dispatch(c, &m50.gather(0, n as u32, &fb, &gp)))?;
             // How evenly a subgroup's 32 gathers (8 × 4 pixels) share its time at ~50 found.
-            let balance = m50.query_stats(0, &fb, n as u32, 61, 0)?.group_balance();
-            let qc50t = m50.query_stats(0, &fb, n as u32, 61, 1)?;
+            let [qs50t, qc50t] = m50.query_stats(0, &fb, n as u32, 61)?;
+            let balance = qs50t.group_balance();
             drop(m50);
             let mut gt = format!("{gt:.3} / {g50t:.3} ({balance:.2}");
             if qc50t.points > 0 {
