@@ -142,12 +142,11 @@ impl BvhNode {
         )
     }
 
-    /// Every slot's box as stored (`child_box` of slots 0..8): lower and upper corners per
-    /// axis. Natively with AVX, eight slots per instruction (the same exact values).
+    /// Every slot's quantised box as floats (the bytes of `quantised` of slots 0..8): lower x,
+    /// y, z, then upper x, y, z, slot s in lane s. Natively with AVX, eight slots per
+    /// instruction (the same exact values: bytes convert exactly).
     #[inline(always)]
-    pub fn child_boxes(&self) -> ([[f32; BVH_WIDTH]; 3], [[f32; BVH_WIDTH]; 3]) {
-        let o = self.origin();
-        let st = self.steps();
+    pub fn quantised_boxes(&self) -> [[f32; BVH_WIDTH]; 6] {
         let words = [
             (self.lo_x_y.x, self.lo_x_y.y),
             (self.lo_x_y.z, self.lo_x_y.w),
@@ -159,23 +158,39 @@ impl BvhNode {
         let mut c = [[0.0f32; BVH_WIDTH]; 6];
         let mut k = 0;
         while k < 6 {
-            let a = k % 3;
             #[cfg(all(target_arch = "x86_64", target_feature = "avx"))]
-            // SAFETY: the cfg guarantees AVX and SSE4.1. The same product and sum per slot as
-            // the loop below, eight slots at once.
+            // SAFETY: the cfg guarantees AVX and SSE4.1.
             unsafe {
-                use core::arch::x86_64::*;
-                let q = bytes_x8(words[k].0, words[k].1);
-                _mm256_storeu_ps(c[k].as_mut_ptr(), _mm256_add_ps(_mm256_set1_ps(o[a]), _mm256_mul_ps(_mm256_set1_ps(st[a]), q)));
+                core::arch::x86_64::_mm256_storeu_ps(c[k].as_mut_ptr(), bytes_x8(words[k].0, words[k].1));
             }
             #[cfg(not(all(target_arch = "x86_64", target_feature = "avx")))]
             {
                 let mut s = 0;
                 while s < BVH_WIDTH {
-                    // Exact: a power of two times a byte, added to a multiple of it (module rules).
-                    c[k][s] = o[a] + st[a] * byte_of(words[k].0, words[k].1, s as u32) as f32;
+                    c[k][s] = byte_of(words[k].0, words[k].1, s as u32) as f32;
                     s += 1;
                 }
+            }
+            k += 1;
+        }
+        c
+    }
+
+    /// Every slot's box as stored (`child_box` of slots 0..8): lower and upper corners per
+    /// axis. Natively with AVX, eight slots per instruction (the same exact values).
+    #[inline(always)]
+    pub fn child_boxes(&self) -> ([[f32; BVH_WIDTH]; 3], [[f32; BVH_WIDTH]; 3]) {
+        let o = self.origin();
+        let st = self.steps();
+        let mut c = self.quantised_boxes();
+        let mut k = 0;
+        while k < 6 {
+            let a = k % 3;
+            let mut s = 0;
+            while s < BVH_WIDTH {
+                // Exact: a power of two times a byte, added to a multiple of it (module rules).
+                c[k][s] = o[a] + st[a] * c[k][s];
+                s += 1;
             }
             k += 1;
         }
@@ -347,17 +362,22 @@ impl Grid {
     fn new(node: &BvhNode, r: &BoxRay) -> Self {
         let o = node.origin();
         let st = node.steps();
-        // Per axis (scale, near, far); written out per axis, as an array indexed at run time
-        // may be placed in a GPU's local memory.
-        let axis = |a: usize| {
-            let rel = o[a] - r.origin[a];
-            let offset = rel * r.inv[a];
-            let err = fma(PLANE_ROUNDING, fma(255.0, st[a], rel.abs()) * r.inv[a].abs(), PLANE_FLOOR);
-            (st[a] * r.inv[a], offset - err, offset + err)
-        };
-        let (x, y, z) = (axis(0), axis(1), axis(2));
+        // Per axis; written out per axis, as an array indexed at run time may be placed in a
+        // GPU's local memory.
+        let (x, y, z) = (grid_axis(o[0], st[0], r.origin[0], r.inv[0]), grid_axis(o[1], st[1], r.origin[1], r.inv[1]), grid_axis(o[2], st[2], r.origin[2], r.inv[2]));
         Grid { scale: [x.0, y.0, z.0], near: [x.1, y.1, z.1], far: [x.2, y.2, z.2] }
     }
+}
+
+/// One axis of `Grid`: (scale, near, far) of a node whose grid origin and step along the axis
+/// are `o` and `st`, for a ray whose origin and reciprocal direction along it are `origin` and
+/// `inv` (the packet walk's fast test computes the same per lane).
+#[inline(always)]
+fn grid_axis(o: f32, st: f32, origin: f32, inv: f32) -> (f32, f32, f32) {
+    let rel = o - origin;
+    let offset = rel * inv;
+    let err = fma(PLANE_ROUNDING, fma(255.0, st, rel.abs()) * inv.abs(), PLANE_FLOOR);
+    (st * inv, offset - err, offset + err)
 }
 
 /// The hit mask of `node`'s children for a `BoxRay::tame` ray `r` within [`t_min`, `t_max`]:
