@@ -16,7 +16,7 @@
 //!   `a*b - c*d` into an FMA and break the antisymmetry the proof relies on.
 //! * A degenerate (zero-area) triangle gives `det == 0` and never hits; the scene loader also
 //!   drops triangles whose area is exactly 0.
-use crate::math::{diff_of_products, fma, pow2_normaliser, LaneMask};
+use crate::math::{diff_of_products, fma, LaneMask};
 use crate::ray::Ray;
 
 /// Per-ray constants of the test, computed once per ray.
@@ -42,26 +42,33 @@ impl ShearedRay {
     /// `None` for a ray that `Ray::is_valid` rejects.
     #[inline(always)]
     pub fn new(ray: &Ray) -> Option<Self> {
-        if !ray.is_valid() {
-            return None;
-        }
-        let d = ray.dir;
-        let ax = d[0].abs();
-        let ay = d[1].abs();
-        let az = d[2].abs();
-        let kz = if ax >= ay && ax >= az {
-            0u32
-        } else if ay >= az {
-            1
+        let (valid, r) = Self::of(ray);
+        if valid {
+            Some(r)
         } else {
-            2
-        };
+            None
+        }
+    }
+
+    /// Whether `new` gives `Some`, and its value then (else the values of
+    /// `ShearedLanes::default`'s lanes), computed without branches, so that a loop of it over
+    /// the lanes of a packet vectorises (`ShearedLanes::of`).
+    #[inline(always)]
+    pub fn of(ray: &Ray) -> (bool, Self) {
+        let (o, d) = (ray.origin, ray.dir);
+        let finite = o[0].is_finite() & o[1].is_finite() & o[2].is_finite() & d[0].is_finite() & d[1].is_finite() & d[2].is_finite();
+        let (ax, ay, az) = (d[0].abs(), d[1].abs(), d[2].abs());
+        let kz = if ax >= ay && ax >= az { 0u32 } else if ay >= az { 1 } else { 2 };
         let p = permute(d, kz);
-        let scale = match pow2_normaliser(p[2]) {
-            Some(s) => s,
-            None => return None,
-        };
-        Some(Self { origin: ray.origin, kz, dx: p[0] * scale, dy: p[1] * scale, dz: p[2] * scale, scale })
+        // `pow2_normaliser(p[2])` written out. For finite directions |p[2]| is the largest
+        // component, so its exponent's range is also `Ray::is_valid`'s condition on the
+        // direction; the rest of that: finite, and the interval ordered.
+        let ez = (p[2].to_bits() >> 23) & 0xff;
+        let valid = finite & (ez >= 2) & (ez <= 252) & (ray.t_min >= 0.0) & (ray.t_min <= ray.t_max);
+        let scale = f32::from_bits(254u32.wrapping_sub(ez) << 23);
+        let pick = |v: f32| if valid { v } else { 0.0 };
+        let r = Self { origin: [pick(o[0]), pick(o[1]), pick(o[2])], kz: if valid { kz } else { 2 }, dx: pick(p[0] * scale), dy: pick(p[1] * scale), dz: pick(p[2] * scale), scale: pick(scale) };
+        (valid, r)
     }
 
     /// Vertex relative to the origin, sheared (and multiplied by dz): (x, y, z-unsheared).
@@ -126,6 +133,23 @@ impl<const W: usize> Default for ShearedLanes<W> {
 }
 
 impl<const W: usize> ShearedLanes<W> {
+    /// `ShearedRay::new` of every ray (`ShearedRay::of`, in a loop over the lanes that
+    /// vectorises natively): lane l holds ray l's constants and bit l of the mask returned is set
+    /// where it is `Some`; other lanes hold `default`'s values.
+    #[inline(always)]
+    pub fn of(rays: &[Ray; W]) -> (Self, u32) {
+        let mut lanes = Self::default();
+        let mut valid = LaneMask::<W>::new();
+        let mut l = 0;
+        while l < W {
+            let (ok, r) = ShearedRay::of(&rays[l]);
+            lanes.set(l, &r);
+            valid.put(l, ok);
+            l += 1;
+        }
+        (lanes, valid.bits())
+    }
+
     /// Lane `l` becomes `r`.
     #[inline(always)]
     pub fn set(&mut self, l: usize, r: &ShearedRay) {
@@ -237,6 +261,63 @@ pub fn intersect_triangle(
 mod tests {
     use super::*;
     use crate::rng::Rng;
+
+    /// `ShearedRay::new` (now branch-free, `ShearedRay::of`) is the straightforward one: `None`
+    /// exactly for the rays `Ray::is_valid` rejects, else the largest component's axis and its
+    /// power-of-two normaliser; and `ShearedLanes::of` holds every lane's value (invalid lanes:
+    /// the default's). Rays with zeros of both signs, subnormal, tiny, huge, infinite and NaN
+    /// components and intervals in every order.
+    #[test]
+    fn lanes_are_set_up_as_one_ray_each() {
+        const W: usize = 8;
+        let mut rng = Rng::new(9, 2);
+        // Among them the edges of the normalisable range: biased exponents 0, 1, 2 and 252, 253,
+        // 254.
+        let special = [0.0, -0.0, 1e-40, -1e-39, 1.5e-38, -2e-38, 3e-38, 1.0, -3.5, 5e37, -1e38, 1.2e38, -2e38, 3.3e38, f32::INFINITY, f32::NEG_INFINITY, f32::NAN];
+        let (mut valid_rays, mut rays_seen) = (0, 0);
+        for i in 0..20_000u32 {
+            let mut c = |rng: &mut Rng, p: u32| if rng.next_u32() % p == 0 { special[(rng.next_u32() % special.len() as u32) as usize] } else { (rng.next_f32() * 2.0 - 1.0) * 8.0 };
+            let rays: [Ray; W] = core::array::from_fn(|_| {
+                let p = if i % 2 == 0 { 4 } else { 40 };
+                let o = [c(&mut rng, p), c(&mut rng, p), c(&mut rng, p)];
+                let mut d = [c(&mut rng, p), c(&mut rng, p), c(&mut rng, p)];
+                if i % 3 == 0 {
+                    // A special largest component, the others below it.
+                    let m = special[(rng.next_u32() % special.len() as u32) as usize];
+                    let k = (rng.next_u32() % 3) as usize;
+                    d = [m * rng.next_f32(), m * rng.next_f32(), m * rng.next_f32()];
+                    d[k] = m;
+                }
+                let t = [0.0, -0.0, -1.0, 0.5, 2.0, f32::INFINITY, f32::NAN];
+                let t_min = if rng.next_u32() % 3 == 0 { t[(rng.next_u32() % 7) as usize] } else { 0.0 };
+                let t_max = if rng.next_u32() % 3 == 0 { t[(rng.next_u32() % 7) as usize] } else { f32::INFINITY };
+                Ray::new(o, d, t_min, t_max)
+            });
+            let (lanes, valid) = ShearedLanes::of(&rays);
+            for (l, ray) in rays.iter().enumerate() {
+                // The straightforward constants.
+                let reference = ray.is_valid().then(|| {
+                    let a = ray.dir.map(f32::abs);
+                    let kz = if a[0] >= a[1] && a[0] >= a[2] { 0 } else if a[1] >= a[2] { 1 } else { 2 };
+                    let p = permute(ray.dir, kz);
+                    let scale = crate::math::pow2_normaliser(p[2]).unwrap();
+                    (ray.origin, kz, p[0] * scale, p[1] * scale, p[2] * scale, scale)
+                });
+                let bits = |r: &ShearedRay| (r.origin.map(f32::to_bits), r.kz, r.dx.to_bits(), r.dy.to_bits(), r.dz.to_bits(), r.scale.to_bits());
+                let one = ShearedRay::new(ray);
+                assert_eq!(one.as_ref().map(bits), reference.map(|(o, kz, dx, dy, dz, s)| (o.map(f32::to_bits), kz, dx.to_bits(), dy.to_bits(), dz.to_bits(), s.to_bits())), "{ray:?}");
+                assert_eq!(valid >> l & 1 == 1, one.is_some(), "{ray:?}");
+                let lane = ShearedRay { origin: [lanes.origin[0][l], lanes.origin[1][l], lanes.origin[2][l]], kz: lanes.kz[l], dx: lanes.dx[l], dy: lanes.dy[l], dz: lanes.dz[l], scale: lanes.scale[l] };
+                let default = ShearedLanes::<1>::default();
+                let none = ShearedRay { origin: [0.0; 3], kz: default.kz[0], dx: default.dx[0], dy: default.dy[0], dz: default.dz[0], scale: default.scale[0] };
+                assert_eq!(bits(&lane), bits(one.as_ref().unwrap_or(&none)), "{ray:?}");
+                valid_rays += one.is_some() as u32;
+                rays_seen += 1;
+            }
+        }
+        // Both kinds, many times.
+        assert!(valid_rays > rays_seen / 5 && valid_rays < rays_seen * 4 / 5, "{valid_rays} of {rays_seen}");
+    }
 
     /// All lanes at once give each lane's one-ray answer bit for bit: random triangles (large,
     /// thin, degenerate, on a grid so rays pass through shared edges and vertices) and rays in

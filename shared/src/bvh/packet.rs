@@ -36,7 +36,7 @@ use crate::math::{fma, max_num, min_num, LaneMask};
 use crate::query::Query;
 use crate::ray::Ray;
 use crate::stats::Stats;
-use crate::triangle::{intersect_triangle_lanes, ShearedLanes, ShearedRay, TriHit};
+use crate::triangle::{intersect_triangle_lanes, ShearedLanes, TriHit};
 use core::mem::MaybeUninit;
 
 /// Rays per work item of `bvh+packets`: the native runtime traces two items' rays as one packet
@@ -68,25 +68,21 @@ pub fn traverse_packet<Q: Query, S: Stats, const W: usize>(bvh: &Bvh, rays: &[Ra
     if bvh.nodes.is_empty() {
         return true;
     }
-    // Each valid lane's sheared ray, origin, direction and t_min, side by side (invalid lanes:
-    // direction 1, origin 0, so the loops below compute nothing infinite for them).
-    let mut sheared = ShearedLanes::<W>::default();
+    // Each valid lane's sheared ray (`sheared.origin` holds the origins), direction and t_min,
+    // side by side (invalid lanes: direction 1, origin 0, so the loops below compute nothing
+    // infinite for them).
+    let (sheared, active) = ShearedLanes::of(rays);
     let mut dir = [[1.0f32; W]; 3];
     let mut t_min = [0.0f32; W];
-    let mut active = 0u32;
     let mut l = 0;
     while l < W {
-        if let Some(r) = ShearedRay::new(&rays[l]) {
-            // (`sheared.origin` holds the origins.)
-            sheared.set(l, &r);
-            let mut a = 0;
-            while a < 3 {
-                dir[a][l] = rays[l].dir[a];
-                a += 1;
-            }
-            t_min[l] = rays[l].t_min;
-            active |= 1 << l;
+        let valid = active & (1 << l) != 0;
+        let mut a = 0;
+        while a < 3 {
+            dir[a][l] = if valid { rays[l].dir[a] } else { 1.0 };
+            a += 1;
         }
+        t_min[l] = if valid { rays[l].t_min } else { 0.0 };
         l += 1;
     }
     if active == 0 {
