@@ -276,7 +276,7 @@ mod tests {
         let special = [0.0, -0.0, 1e-40, -1e-39, 1.5e-38, -2e-38, 3e-38, 1.0, -3.5, 5e37, -1e38, 1.2e38, -2e38, 3.3e38, f32::INFINITY, f32::NEG_INFINITY, f32::NAN];
         let (mut valid_rays, mut rays_seen) = (0, 0);
         for i in 0..20_000u32 {
-            let mut c = |rng: &mut Rng, p: u32| if rng.next_u32() % p == 0 { special[(rng.next_u32() % special.len() as u32) as usize] } else { (rng.next_f32() * 2.0 - 1.0) * 8.0 };
+            let c = |rng: &mut Rng, p: u32| if rng.next_u32() % p == 0 { special[(rng.next_u32() % special.len() as u32) as usize] } else { (rng.next_f32() * 2.0 - 1.0) * 8.0 };
             let rays: [Ray; W] = core::array::from_fn(|_| {
                 let p = if i % 2 == 0 { 4 } else { 40 };
                 let o = [c(&mut rng, p), c(&mut rng, p), c(&mut rng, p)];
