@@ -271,9 +271,9 @@ pub fn traverse_packet<Q: Query, S: Stats, const W: usize>(bvh: &Bvh, rays: &[Ra
 /// picked by its own signs (`neg`, per axis: all bits set where the direction is negative). For
 /// lanes that are `BoxRay::tame` each lane's bits are `fast_children`'s for its ray, so no box
 /// its exact interval meets is culled (the parent module's rules; a test checks the two agree).
-/// Against the exact slab test this walk used before, six multiply-adds per slot and lane
-/// instead of six subtractions, six products and six more minima and maxima (natively, 2
-/// cores, with the changes made beside it: 5–30 % faster,
+/// Against the exact slab test this walk used before: six multiply-adds and six bit selects per
+/// slot and lane instead of six subtractions, six products, six minima and maxima and the far
+/// plane's widening (natively, 2 cores, with the changes made beside it:
 /// `docs/benchmarks/2026-12-06-cpu-packet-grid/`).
 #[inline(always)]
 fn fast_lanes<const W: usize>(node: &BvhNode, o: &[[f32; W]; 3], inv: &[[f32; W]; 3], neg: &[[u32; W]; 3], t0: &[f32; W], t1: &[f32; W], oct_inv: u32, mask: u32) -> [u32; BVH_WIDTH] {
