@@ -175,27 +175,6 @@ impl BvhNode {
         }
         c
     }
-
-    /// Every slot's box as stored (`child_box` of slots 0..8): lower and upper corners per
-    /// axis. Natively with AVX, eight slots per instruction (the same exact values).
-    #[inline(always)]
-    pub fn child_boxes(&self) -> ([[f32; BVH_WIDTH]; 3], [[f32; BVH_WIDTH]; 3]) {
-        let o = self.origin();
-        let st = self.steps();
-        let mut c = self.quantised_boxes();
-        let mut k = 0;
-        while k < 6 {
-            let a = k % 3;
-            let mut s = 0;
-            while s < BVH_WIDTH {
-                // Exact: a power of two times a byte, added to a multiple of it (module rules).
-                c[k][s] = o[a] + st[a] * c[k][s];
-                s += 1;
-            }
-            k += 1;
-        }
-        ([c[0], c[1], c[2]], [c[3], c[4], c[5]])
-    }
 }
 
 /// Whether meta byte `m` is a node's (its low five bits are 24..32).
@@ -663,7 +642,7 @@ mod tests {
     use crate::rng::Rng;
 
     /// The native eight-wide child test gives the scalar one's mask bit for bit (and the native
-    /// eight-wide box decoding the scalar one's boxes), on random
+    /// eight-wide decoding of the quantised boxes the scalar one's bytes), on random
     /// nodes (any bytes: empty and inverted boxes, every meta byte) and rays in every octant,
     /// with intervals that end inside the boxes, at infinity, and equal distances (bytes shared
     /// by neighbouring slots).
@@ -691,11 +670,11 @@ mod tests {
             let r = BoxRay::new(&Ray::new(origin, d, 0.0, f32::INFINITY));
             let t_min = if i % 7 == 0 { 0.0 } else { f(&mut rng, 1.0) };
             let t_max = if i % 4 == 0 { f32::INFINITY } else { t_min + rng.next_f32() * 2.0 };
-            // All eight boxes at once are the boxes one by one.
-            let (lo, hi) = node.child_boxes();
+            // All eight quantised boxes at once are the boxes one by one.
+            let q = node.quantised_boxes();
             for s in 0..BVH_WIDTH {
-                let (l1, h1) = node.child_box(s as u32);
-                assert_eq!(([lo[0][s], lo[1][s], lo[2][s]], [hi[0][s], hi[1][s], hi[2][s]]), (l1, h1), "case {i}, slot {s}");
+                let (l1, h1) = node.quantised(s as u32);
+                assert_eq!(([q[0][s], q[1][s], q[2][s]], [q[3][s], q[4][s], q[5][s]]), (l1.map(|b| b as f32), h1.map(|b| b as f32)), "case {i}, slot {s}");
             }
             let scalar = fast_children(&node, &r, t_min, t_max);
             assert_eq!(fast_children_x8(&node, &r, t_min, t_max), scalar, "case {i}");

@@ -115,12 +115,18 @@ pub fn traverse_packet<Q: Query, S: Stats, const W: usize>(bvh: &Bvh, rays: &[Ra
     let mut l = 0;
     while l < W {
         let mut near = true;
-        let mut reach = 0.0f32;
         let mut a = 0;
         while a < 3 {
             near &= (org[a][l] - org[a][first]).abs() <= near_origin;
-            // (An infinite reciprocal makes the sum infinite, never NaN: the first factor is
-            // positive.)
+            a += 1;
+        }
+        // `BoxRay::tame`'s sum, in its order, written out over the lanes' arrays (a shared
+        // function called with each lane's values gathered ran the bunny's primary rays at
+        // 21.8–21.9 Mrays/s against 22.4–22.5, one thread). An infinite reciprocal makes it
+        // infinite, never NaN: the first factor is positive.
+        let mut reach = 0.0f32;
+        let mut a = 0;
+        while a < 3 {
             reach += fma(1024.0, st[a], (ro[a] - org[a][l]).abs()) * inv[a][l].abs();
             a += 1;
         }
