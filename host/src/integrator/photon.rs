@@ -681,17 +681,14 @@ impl<'t> PhotonMap<'t> {
             None => None,
             Some((_, leaves, nodes)) => Some((rt.read(nodes, nodes.len())?, rt.read(leaves, leaves.len())?)),
         };
-        let mut stats = [QueryStats::default(); 2];
-        for (map, s) in stats.iter_mut().enumerate().take(p.maps as usize) {
-            Self::map_stats(&p, map as u32, &sorted, kd.as_ref(), &rays, &paths, count, stride, s);
-        }
-        Ok(stats)
+        // A map the index lacks: no gathers.
+        Ok(core::array::from_fn(|map| if map < p.maps as usize { Self::map_stats(&p, map as u32, &sorted, kd.as_ref(), &rays, &paths, count, stride) } else { QueryStats::default() }))
     }
 
-    /// `query_stats` of map `map` into `s`, over read-back buffers (`kd`: the kd index's nodes
+    /// `query_stats` of map `map`, over read-back buffers (`kd`: the kd index's nodes
     /// and leaves, for a kd index).
     #[allow(clippy::too_many_arguments)]
-    fn map_stats(p: &IndexParams, map: u32, sorted: &kdray_shared::photon::SortedPhotons, kd: Option<&(Vec<KdNode>, Vec<LeafCells>)>, rays: &[Ray], paths: &[kdray_shared::PathState], count: u32, stride: u32, s: &mut QueryStats) {
+    fn map_stats(p: &IndexParams, map: u32, sorted: &kdray_shared::photon::SortedPhotons, kd: Option<&(Vec<KdNode>, Vec<LeafCells>)>, rays: &[Ray], paths: &[kdray_shared::PathState], count: u32, stride: u32) -> QueryStats {
         use kdray_shared::photon::{CellVisitor, Disc, HashGrid, KdCells, PhotonIndex, SortedPhotons};
         struct Count {
             disc: Disc,
@@ -710,14 +707,14 @@ impl<'t> PhotonMap<'t> {
                 self.found += self.disc.test(w).0 as u64;
             }
         }
-        let p = *p;
         let r = p.radius[map as usize];
+        let mut s = QueryStats::default();
         // `per_step`: words a gather step takes (the grid's `HashGrid::visit`: `GRID_STEP`, padding
         // included; the kd index's leaves: one).
         let mut run = |per_step: u64, index: &dyn Fn(&mut Count)| {
             let gather = |k: usize| {
                 (paths[k].flags & kdray_shared::PATH_GATHER != 0).then(|| {
-                    let mut c = Count { disc: Disc::new(&p, rays[k].origin, rays[k].dir, r), visited: 0, found: 0, words: 0 };
+                    let mut c = Count { disc: Disc::new(p, rays[k].origin, rays[k].dir, r), visited: 0, found: 0, words: 0 };
                     index(&mut c);
                     c
                 })
@@ -745,14 +742,15 @@ impl<'t> PhotonMap<'t> {
         };
         match kd {
             None => {
-                let grid = HashGrid::new(&p);
+                let grid = HashGrid::new(p);
                 run(kdray_shared::photon::GRID_STEP as u64, &|c| grid.visit(c.disc.x, r, map, sorted, c));
             }
             Some((nodes, leaves)) => {
-                let kd = KdCells::new(&p, nodes, leaves);
+                let kd = KdCells::new(p, nodes, leaves);
                 run(1, &|c| kd.visit(c.disc.x, r, map, sorted, c));
             }
         }
+        s
     }
 
     /// Cells per map and slots (capacity) of the index.
