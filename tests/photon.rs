@@ -14,7 +14,7 @@ use kdray::runtime::cpu::NATIVE;
 use kdray::scene::{self, CameraSpec, PointLight, Scene, Spot};
 use kdray::{Runtime, Tracer};
 use kdray_shared::kdtree::Algorithm;
-use kdray_shared::photon::{cell_range, emission_numbers, emit_photon, irradiance, irradiance_by, Estimate, HashGrid, KdCells, Lanes, PhotonIndex, PhotonWord, SortedPhotons, Together, WordFrame};
+use kdray_shared::photon::{cell_range, emission_numbers, emit_photon, irradiance, HashGrid, KdCells, PhotonIndex, PhotonWord, SortedPhotons, WordFrame};
 use kdray_shared::{Material, Photon, PhotonParams, INDEX_KD, PHOTON_SOBOL};
 
 fn runtimes() -> Vec<&'static dyn Runtime> {
@@ -256,98 +256,6 @@ fn check_index(map: &PhotonMap, tree: &KdTreeData, records: &[Photon], what: &st
         nonempty += (count > 0) as usize;
     }
     assert!(nonempty > 300, "{what}: only {nonempty} gathers found photons");
-    if p.kind != INDEX_KD {
-        check_lanes(&p, &grid, &view, &placed.iter().map(|(w, m)| (w.position(&frame), w.normal(), *m)).collect::<Vec<_>>(), what);
-    }
-}
-
-/// Numbers in [0, 1) from a xorshift generator seeded with `seed`.
-fn uniform_numbers(mut seed: u64) -> impl FnMut() -> f32 {
-    move || {
-        seed ^= seed << 13;
-        seed ^= seed >> 7;
-        seed ^= seed << 17;
-        (seed >> 40) as f32 / (1u64 << 24) as f32
-    }
-}
-
-/// A subgroup emulated by threads (`photon::Lanes`): each lane a thread, exchanging values
-/// through a shared vector between barriers.
-struct ThreadLanes<'a> {
-    lane: u32,
-    barrier: &'a std::sync::Barrier,
-    values: &'a std::sync::Mutex<Vec<u32>>,
-}
-
-impl ThreadLanes<'_> {
-    /// Every lane's `v`.
-    fn all(&self, v: u32) -> Vec<u32> {
-        self.barrier.wait();
-        self.values.lock().unwrap()[self.lane as usize] = v;
-        self.barrier.wait();
-        let all = self.values.lock().unwrap().clone();
-        self.barrier.wait();
-        all
-    }
-}
-
-impl Lanes for ThreadLanes<'_> {
-    fn min(&self, v: u32) -> u32 {
-        self.all(v).into_iter().min().unwrap()
-    }
-    fn max(&self, v: u32) -> u32 {
-        self.all(v).into_iter().max().unwrap()
-    }
-}
-
-/// The grid's gathers by lanes together (`HashGrid::visit_lanes`, lanes emulated by threads)
-/// give each lane's own gather's sums bit for bit (`irradiance`, alone): subgroups of 1, 4, 8
-/// and 32 lanes at points close together (one shared walk), scattered (each alone) and mixed,
-/// some lanes without a query. `points`: positions, normals and maps of placed photons.
-fn check_lanes(p: &kdray_shared::IndexParams, grid: &HashGrid, view: &SortedPhotons, points: &[([f32; 3], [f32; 3], u32)], what: &str) {
-    let mut next = uniform_numbers(0x2545_f491);
-    let (mut groups, mut shared_found) = (0, 0);
-    for (g, &(q, n, m)) in points.iter().step_by((points.len() / 60).max(1)).enumerate() {
-        let size = [1, 4, 8, 32][g % 4];
-        let r = p.radius[m as usize];
-        // Spread of the lanes' points: within a cell or two (a walk together), or far apart.
-        let spread = [0.3, 1.0, 6.0][g / 4 % 3] * r;
-        let lanes: Vec<([f32; 3], bool)> = (0..size)
-            .map(|_| {
-                let x = [q[0] + spread * (next() - 0.5), q[1] + spread * (next() - 0.5), q[2] + spread * (next() - 0.5)];
-                (x, next() > 0.15 || size == 1)
-            })
-            .collect();
-        let barrier = std::sync::Barrier::new(size as usize);
-        let values = std::sync::Mutex::new(vec![0; size as usize]);
-        let together: Vec<Estimate> = std::thread::scope(|s| {
-            let handles: Vec<_> = lanes
-                .iter()
-                .enumerate()
-                .map(|(lane, &(x, on))| {
-                    let (barrier, values) = (&barrier, &values);
-                    s.spawn(move || {
-                        let mut lanes = ThreadLanes { lane: lane as u32, barrier, values };
-                        irradiance_by(&mut Together { grid, lanes: &mut lanes }, on, p, view, x, n, m)
-                    })
-                })
-                .collect();
-            handles.into_iter().map(|h| h.join().unwrap()).collect()
-        });
-        for (k, &(x, on)) in lanes.iter().enumerate() {
-            let alone = if on { irradiance(grid, p, view, x, n, m) } else { Estimate::default() };
-            let bits = |e: &Estimate| e.irradiance.map(f32::to_bits);
-            assert!(
-                together[k].found == alone.found && bits(&together[k]) == bits(&alone),
-                "{what}: lane {k} of {size} (spread {spread}) at {x:?}, map {m}: together {:?}, alone {:?}",
-                together[k],
-                alone
-            );
-            shared_found += (spread < 2.0 * r) as u32 * alone.found;
-        }
-        groups += 1;
-    }
-    assert!(groups >= 48 && shared_found > 1000, "{what}: the lanes' check ran {groups} groups, {shared_found} photons found close together");
 }
 
 /// Photon words sorted by cell as the index's sort leaves them (`cell_range` reads them back).
@@ -396,7 +304,13 @@ fn first_where(a: f32, b: f32, f: impl Fn(f32) -> bool) -> f32 {
 /// gather at a point at infinity or NaN finds none (no panic, no endless loop).
 #[test]
 fn gathers_find_what_brute_force_counts_at_radii_of_a_few_word_steps() {
-    let mut rand = uniform_numbers(0x9e37_79b9_7f4a_7c15);
+    let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+    let mut rand = move || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed >> 40) as f32 / (1u64 << 24) as f32
+    };
     let n = [0.0, 0.0, 1.0];
     let mut accepted_behind = 0;
     for (min, max) in [([0.0f32; 3], [1000.0f32; 3]), ([1.5e5, 1e3, -2.2e5], [1.5e5 + 20.0, 1e3 + 20.0, -2.2e5 + 20.0]), ([-3.0, -1.0, -2.0], [4.0, 2.5, 1.0])] {

@@ -7,7 +7,7 @@ use kdray_shared::aabb::Aabb;
 use kdray_shared::bvh::{BvhNode, TriWords};
 use kdray_shared::kdtree::{Full, KdNode, Short};
 use kdray_shared::trace::{Brute, Kd, Wide};
-use kdray_shared::photon::{self, HashGrid, KdCells, PhotonWord, SortedPhotons, Together};
+use kdray_shared::photon::{self, HashGrid, KdCells, PhotonWord, SortedPhotons};
 use kdray_shared::{Hit, IndexParams, LeafCells, Light, Material, PathState, Photon, PhotonParams, PhotonPath, Ray, Triangle};
 use spirv_std::glam::UVec3;
 use spirv_std::spirv;
@@ -106,9 +106,7 @@ pub fn gather_grid(
     #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] next_points: &mut [u32],
 ) {
     let sorted = SortedPhotons { words, offsets };
-    let grid = HashGrid::new(params);
-    let mut together = Together { grid: &grid, lanes: &mut Subgroup };
-    photon::gather_by(crate::item(id, groups), params, &mut together, rays, &sorted, paths, points, &mut Atomics(next_points));
+    photon::gather(crate::item(id, groups), params, &HashGrid::new(params), rays, &sorted, paths, points, &mut Atomics(next_points));
 }
 
 #[spirv(compute(threads(64)))]
@@ -128,20 +126,6 @@ pub fn gather_kd(
     let index = KdCells::new(params, nodes, leaves);
     let sorted = SortedPhotons { words, offsets };
     photon::gather(crate::item(id, groups), params, &index, rays, &sorted, paths, points, &mut Atomics(next_points));
-}
-
-/// A subgroup's lanes (`photon::Lanes`).
-struct Subgroup;
-
-impl photon::Lanes for Subgroup {
-    #[inline(always)]
-    fn min(&self, v: u32) -> u32 {
-        spirv_std::arch::subgroup_u_min(v)
-    }
-    #[inline(always)]
-    fn max(&self, v: u32) -> u32 {
-        spirv_std::arch::subgroup_u_max(v)
-    }
 }
 
 /// The workgroup counts of an indirect dispatch over the `counts[0]` items a pass before

@@ -883,9 +883,20 @@ impl PhotonIndex for HashGrid {
     }
     #[inline(always)]
     fn visit<V: CellVisitor>(&self, x: [f32; 3], r: f32, map: u32, sorted: &SortedPhotons, v: &mut V) {
-        let Window { lo, hi, r, inv: [ix, _], c } = self.window(x, r, map);
+        let s = self.cell_size[map as usize];
+        let (ix, i, c) = (1.0 / s[0], 1.0 / s[1], s[1]);
         let o = self.origin;
         let (wx, w) = (self.wx, self.w);
+        // Every photon `Disc::test` may count lies within the reach (`reach`).
+        let r = reach(r, self.slack);
+        let lo = [self.coord(x[0] - r, o[0], ix), self.coord(x[1] - r, o[1], i), self.coord(x[2] - r, o[2], i)];
+        // At most wx (w) cells along x (y, z): the reach spans 2r, less than wx − 1 (w − 1)
+        // cell sizes. (Wrapping: a point at infinity has lo = u32::MAX, and then no window.)
+        let hi = [
+            self.coord(x[0] + r, o[0], ix).min(lo[0].wrapping_add(wx - 1)),
+            self.coord(x[1] + r, o[1], i).min(lo[1].wrapping_add(w - 1)),
+            self.coord(x[2] + r, o[2], i).min(lo[2].wrapping_add(w - 1)),
+        ];
         // Along x, the cells of one block are consecutive buckets: a row of the window is one
         // run, or two where it crosses into the next block. The block hash is nested as in
         // `bucket`. Offsets come by segments of a block's wx·w² cells (`offset_slot`), one
@@ -893,10 +904,20 @@ impl PhotonIndex for HashGrid {
         let first_block = map * self.blocks;
         let seg = wx * w * w;
         let (qx0, mx0) = (lo[0] / wx, lo[0] % wx);
-        let chord = Chord::new(self, x, r, c);
+        // Each row (y, z) is clipped to the sphere: at distance d from x its rectangle across
+        // y and z holds photons within r only along the chord x ± √(r² − d²), and none where
+        // d > r. Widened so that no photon a `Disc::test` counts is lost to rounding: r is the
+        // reach (above), distances and the half chord are widened by `eps`, far above the
+        // rounding of coordinates of magnitude `m` (the cells' bounds, `coord`'s products) and
+        // of a GPU's square root.
+        let m = x[0].abs().max(x[1].abs()).max(x[2].abs()) + o[0].abs().max(o[1].abs()).max(o[2].abs()) + r;
+        let eps = 1e-6 * m;
+        let r2 = r * r;
         // The window's first row along y and along z (`RowAxis`).
         let axis = |a: usize| RowAxis { k: lo[a], q: lo[a] / w, m: lo[a] % w, lo: fma(lo[a] as f32 - 1.0, c, o[a]) };
         let (y0, mut z) = (axis(1), axis(2));
+        // A row's distance from x along y or z, less `eps`, at least 0.
+        let dist = |a: &RowAxis, x: f32| ((a.lo - x).max(x - (a.lo + c)) - eps).max(0.0);
         // First every run's photons (`sorted.run`), in visiting order, the empty ones left
         // out; then one loop over their photons. Computing a run (hashes, offsets) inside the
         // photon loop made a subgroup take that step at nearly every photon step (its lanes
@@ -907,11 +928,16 @@ impl PhotonIndex for HashGrid {
         let mut runs = [MaybeUninit::<[u32; 2]>::uninit(); MAX_RUNS];
         let mut count = 0usize;
         while z.k <= hi[2] {
-            let dz = chord.dist(&z, x[2]);
+            let dz = dist(&z, x[2]);
             let mut y = y0;
             while y.k <= hi[1] {
-                let (crossed, [a, b]) = chord.cells(self, chord.dist(&y, x[1]), dz, lo[0], hi[0], ix);
-                if crossed {
+                let dy = dist(&y, x[1]);
+                let h2 = r2 - dy * dy - dz * dz;
+                if h2 >= 0.0 {
+                    let h = sqrt(h2) + eps;
+                    // The chord's cells, within the window (so a ≤ b: both hold x's cell).
+                    let a = self.coord(x[0] - h, o[0], ix).max(lo[0]);
+                    let b = self.coord(x[0] + h, o[0], ix).min(hi[0]);
                     // a's block and place along x, from lo's: a − lo[0] < wx.
                     let mut ma = mx0 + (a - lo[0]);
                     let mut qa = qx0;
@@ -978,80 +1004,6 @@ impl PhotonIndex for HashGrid {
     }
 }
 
-/// A grid query's window (`HashGrid::window`): its cells `lo..=hi` per axis, the reach `r` it
-/// spans (`reach`), the reciprocals of the map's cell sizes along x and across (`inv`), and the
-/// cell size across (`c`).
-#[derive(Copy, Clone)]
-struct Window {
-    lo: [u32; 3],
-    hi: [u32; 3],
-    r: f32,
-    inv: [f32; 2],
-    c: f32,
-}
-
-impl HashGrid {
-    /// The window of cells of `map` a query at `x` of radius `r` visits (`visit`).
-    #[inline(always)]
-    fn window(&self, x: [f32; 3], r: f32, map: u32) -> Window {
-        let s = self.cell_size[map as usize];
-        let (ix, i, c) = (1.0 / s[0], 1.0 / s[1], s[1]);
-        let o = self.origin;
-        let (wx, w) = (self.wx, self.w);
-        // Every photon `Disc::test` may count lies within the reach (`reach`).
-        let r = reach(r, self.slack);
-        let lo = [self.coord(x[0] - r, o[0], ix), self.coord(x[1] - r, o[1], i), self.coord(x[2] - r, o[2], i)];
-        // At most wx (w) cells along x (y, z): the reach spans 2r, less than wx − 1 (w − 1)
-        // cell sizes. (Wrapping: a point at infinity has lo = u32::MAX, and then no window.)
-        let hi = [
-            self.coord(x[0] + r, o[0], ix).min(lo[0].wrapping_add(wx - 1)),
-            self.coord(x[1] + r, o[1], i).min(lo[1].wrapping_add(w - 1)),
-            self.coord(x[2] + r, o[2], i).min(lo[2].wrapping_add(w - 1)),
-        ];
-        Window { lo, hi, r, inv: [ix, i], c }
-    }
-}
-
-/// How a query's rows are clipped to its sphere (`HashGrid::visit`): at distance d from x a
-/// row's rectangle across y and z holds photons within r only along the chord x ± √(r² − d²),
-/// and none where d > r. Widened so that no photon a `Disc::test` counts is lost to rounding:
-/// r is the reach (`reach`), distances and the half chord are widened by `eps`, far above the
-/// rounding of coordinates of magnitude `m` (the cells' bounds, `coord`'s products) and of a
-/// GPU's square root.
-#[derive(Copy, Clone)]
-struct Chord {
-    x: f32,
-    o: f32,
-    c: f32,
-    eps: f32,
-    r2: f32,
-}
-
-impl Chord {
-    /// The clipping of the rows of a query at `x` of reach `r` in a grid of cells `c` across.
-    #[inline(always)]
-    fn new(grid: &HashGrid, x: [f32; 3], r: f32, c: f32) -> Chord {
-        let o = grid.origin;
-        let m = x[0].abs().max(x[1].abs()).max(x[2].abs()) + o[0].abs().max(o[1].abs()).max(o[2].abs()) + r;
-        Chord { x: x[0], o: o[0], c, eps: 1e-6 * m, r2: r * r }
-    }
-    /// A row's distance from x along y or z (the query's coordinate `x`), less `eps`, at
-    /// least 0.
-    #[inline(always)]
-    fn dist(&self, a: &RowAxis, x: f32) -> f32 {
-        ((a.lo - x).max(x - (a.lo + self.c)) - self.eps).max(0.0)
-    }
-    /// Whether the row at distances `dy`, `dz` crosses the sphere, and if so the cells `[a, b]`
-    /// along x of its chord within the window's `lo..=hi` (a ≤ b: both hold x's cell); `ix`
-    /// the reciprocal of the cells' size along x.
-    #[inline(always)]
-    fn cells(&self, grid: &HashGrid, dy: f32, dz: f32, lo: u32, hi: u32, ix: f32) -> (bool, [u32; 2]) {
-        let h2 = self.r2 - dy * dy - dz * dz;
-        let h = sqrt(h2.max(0.0)) + self.eps;
-        (h2 >= 0.0, [grid.coord(self.x - h, self.o, ix).max(lo), grid.coord(self.x + h, self.o, ix).min(hi)])
-    }
-}
-
 /// The first half of a grid block's hash (`block_hash`): its coordinates along y and z.
 #[inline(always)]
 fn block_yz(qy: u32, qz: u32) -> u32 {
@@ -1094,168 +1046,6 @@ impl RowAxis {
         if self.m == w {
             self.m = 0;
             self.q += 1;
-        }
-    }
-}
-
-/// The lanes of a subgroup that gather together (`HashGrid::visit_lanes`): on the GPU a
-/// subgroup; natively one item alone (`OneLane`). Every lane of a subgroup calls these at the
-/// same points (subgroup-uniform control flow).
-pub trait Lanes {
-    /// The least of the lanes' `v`.
-    fn min(&self, v: u32) -> u32;
-    /// The greatest of the lanes' `v`.
-    fn max(&self, v: u32) -> u32;
-}
-
-/// One item gathering alone (`Lanes` natively: the same sums as `PhotonIndex::visit`; tests).
-pub struct OneLane;
-
-impl Lanes for OneLane {
-    #[inline(always)]
-    fn min(&self, v: u32) -> u32 {
-        v
-    }
-    #[inline(always)]
-    fn max(&self, v: u32) -> u32 {
-        v
-    }
-}
-
-/// A run of a row of a subgroup's shared window (`HashGrid::visit_lanes`): a row spans fewer
-/// than 2·wx cells along x, so it touches at most three blocks, a run each; their photons are
-/// numbered one after the other (the row's stream).
-#[derive(Copy, Clone)]
-struct RowRun {
-    /// The run's first cell along x.
-    xa: u32,
-    /// Its first cell's offset slot (`offset_slot`).
-    slot: u32,
-    /// Its photons, `j..e` (`SortedPhotons::run`).
-    j: u32,
-    e: u32,
-    /// Where its photons start in the row's stream.
-    pre: u32,
-}
-
-impl HashGrid {
-    /// `visit` by the lanes of a subgroup together, each lane the visitor of its own query at
-    /// `x` (`on`: whether it has one; every lane calls this). The lanes walk the union of their
-    /// windows once, row by row, every lane loading the same photon word at the same time (one
-    /// request for the subgroup, where lanes each at their own photon make one a lane), and each
-    /// counts (`real`) the photons of its own window's cells on its own chord, in its own order:
-    /// the photons `visit` would count, in the same order, with the same sums. Where the union
-    /// spans 2·wx cells or more along x or 2·w across (points far apart), each lane visits alone.
-    #[inline(always)]
-    #[allow(clippy::too_many_arguments)]
-    pub fn visit_lanes<L: Lanes, V: CellVisitor>(&self, lanes: &mut L, on: bool, x: [f32; 3], r: f32, map: u32, sorted: &SortedPhotons, v: &mut V) {
-        let Window { lo, hi, r, inv: [ix, _], c } = self.window(x, r, map);
-        let o = self.origin;
-        let (wx, w) = (self.wx, self.w);
-        // A point at infinity (lo = u32::MAX) has no window (`window`); it takes no part.
-        let on = on & (lo[0] <= hi[0]) & (lo[1] <= hi[1]) & (lo[2] <= hi[2]);
-        let ulo = [lanes.min(if on { lo[0] } else { u32::MAX }), lanes.min(if on { lo[1] } else { u32::MAX }), lanes.min(if on { lo[2] } else { u32::MAX })];
-        let uhi = [lanes.max(if on { hi[0] } else { 0 }), lanes.max(if on { hi[1] } else { 0 }), lanes.max(if on { hi[2] } else { 0 })];
-        if ulo[0] > uhi[0] {
-            // No lane has a query.
-            return;
-        }
-        if uhi[0] - ulo[0] >= 2 * wx || uhi[1] - ulo[1] >= 2 * w || uhi[2] - ulo[2] >= 2 * w {
-            if on {
-                self.visit(x, r, map, sorted, v);
-            }
-            return;
-        }
-        let first_block = map * self.blocks;
-        let seg = wx * w * w;
-        let chord = Chord::new(self, x, r, c);
-        let (qx0, mx0) = (ulo[0] / wx, ulo[0] % wx);
-        let axis = |a: usize| RowAxis { k: ulo[a], q: ulo[a] / w, m: ulo[a] % w, lo: fma(ulo[a] as f32 - 1.0, c, o[a]) };
-        let (y0, mut z) = (axis(1), axis(2));
-        while z.k <= uhi[2] {
-            let dz = chord.dist(&z, x[2]);
-            let mut y = y0;
-            while y.k <= uhi[1] {
-                // This lane's cells of the row: its chord, within its window.
-                let (crossed, [a, b]) = chord.cells(self, chord.dist(&y, x[1]), dz, lo[0], hi[0], ix);
-                let mine = on & crossed & (y.k >= lo[1]) & (y.k <= hi[1]) & (z.k >= lo[2]) & (z.k <= hi[2]);
-                if lanes.max(mine as u32) != 0 {
-                    let hy = block_yz(y.q, z.q);
-                    let place = wx * (y.m + w * z.m);
-                    // The row's runs, a block each along x (the same on every lane).
-                    // Run k: block qx0 + k, its cells from ulo[0] (k = 0, at place mx0 in its
-                    // block) or from the block's first, to the block's last or uhi[0]; none
-                    // where that is empty (then xa > uhi[0]: no lane's cell falls in it).
-                    let run = |k: u32, pre: u32| {
-                        let start = ulo[0] - mx0 + k * wx;
-                        let xa = if k == 0 { ulo[0] } else { start };
-                        let xb = (start + wx - 1).min(uhi[0]);
-                        let slot = (block_hash(qx0 + k, hy, self.blocks) + first_block) * (seg + 1) + place + (xa - start);
-                        let (j, e) = if xa <= xb { sorted.run(slot, slot + (xb + 1 - xa)) } else { (0, 0) };
-                        RowRun { xa, slot, j, e, pre }
-                    };
-                    let r0 = run(0, 0);
-                    let r1 = run(1, r0.e - r0.j);
-                    let r2 = run(2, r1.pre + (r1.e - r1.j));
-                    // This lane's photons in the row's stream, `p0..p1`: from its first cell's
-                    // first photon to its last cell's last (its cells are consecutive along x,
-                    // and the stream is in the order of the cells).
-                    let at = |cell: u32, end: bool| {
-                        let rr = if cell >= r2.xa {
-                            r2
-                        } else if cell >= r1.xa {
-                            r1
-                        } else {
-                            r0
-                        };
-                        let s = rr.slot + (cell - rr.xa) + end as u32;
-                        let (f, _) = sorted.run(s, s);
-                        rr.pre + (f.max(rr.j).min(rr.e) - rr.j)
-                    };
-                    let (p0, p1) = if mine { (at(a, false), at(b, true)) } else { (0, 0) };
-                    // The stream positions some lane counts: the row is walked over these only.
-                    let (from, to) = (lanes.min(if mine { p0 } else { u32::MAX }), lanes.max(if mine { p1 } else { 0 }));
-                    // Every lane tests every photon of the row's runs, loading the same word at
-                    // the same time (one request for the subgroup), and counts those of its own
-                    // stream positions.
-                    let mut k = 0;
-                    while k < 3 {
-                        let rr = if k == 0 {
-                            r0
-                        } else if k == 1 {
-                            r1
-                        } else {
-                            r2
-                        };
-                        // A photon j of the run is at stream position j + shift.
-                        let shift = rr.pre.wrapping_sub(rr.j);
-                        let mine = |j: u32| {
-                            let s = j.wrapping_add(shift);
-                            (s >= p0) & (s < p1)
-                        };
-                        // The run's photons at positions from..to.
-                        let end = rr.pre + (rr.e - rr.j);
-                        let first = from.max(rr.pre).min(end);
-                        let (mut j, b) = (rr.j + (first - rr.pre), rr.j + (to.min(end).max(first) - rr.pre));
-                        while j < b {
-                            // Four a step, as `visit`'s loop.
-                            let j1 = (j + 1).min(b - 1);
-                            let j2 = (j + 2).min(b - 1);
-                            let j3 = (j + 3).min(b - 1);
-                            // SAFETY: j ≤ j1 ≤ j2 ≤ j3 < b, and `run` clamps b to the words held.
-                            let (w0, w1, w2, w3) = unsafe { (sorted.word(j), sorted.word(j1), sorted.word(j2), sorted.word(j3)) };
-                            v.word(w0, mine(j), sorted);
-                            v.word(w1, (j1 > j) & mine(j1), sorted);
-                            v.word(w2, (j2 > j1) & mine(j2), sorted);
-                            v.word(w3, (j3 > j2) & mine(j3), sorted);
-                            j = (j + GRID_STEP).min(b);
-                        }
-                        k += 1;
-                    }
-                }
-                y.step(w, c);
-            }
-            z.step(w, c);
         }
     }
 }
@@ -1567,63 +1357,21 @@ pub struct Estimate {
     pub found: u32,
 }
 
-/// How a gather visits the photons near its point (`PhotonIndex::visit`): an item alone
-/// (`Alone`), or the lanes of a subgroup together (`Together`). `on`: whether this item has a
-/// query (the lanes together take part either way).
-pub trait Visits {
-    /// Visits (`CellVisitor`) the photons of `map` within `r` of `x`, and possibly others.
-    fn visit<V: CellVisitor>(&mut self, on: bool, x: [f32; 3], r: f32, map: u32, sorted: &SortedPhotons, v: &mut V);
-}
-
-/// An item's gather alone, by any index.
-pub struct Alone<'a, I>(pub &'a I);
-
-impl<I: PhotonIndex> Visits for Alone<'_, I> {
-    #[inline(always)]
-    fn visit<V: CellVisitor>(&mut self, on: bool, x: [f32; 3], r: f32, map: u32, sorted: &SortedPhotons, v: &mut V) {
-        if on {
-            self.0.visit(x, r, map, sorted, v);
-        }
-    }
-}
-
-/// The gathers of a subgroup's lanes together, over the hashed grid (`HashGrid::visit_lanes`).
-pub struct Together<'a, L> {
-    /// The index.
-    pub grid: &'a HashGrid,
-    /// The lanes.
-    pub lanes: &'a mut L,
-}
-
-impl<L: Lanes> Visits for Together<'_, L> {
-    #[inline(always)]
-    fn visit<V: CellVisitor>(&mut self, on: bool, x: [f32; 3], r: f32, map: u32, sorted: &SortedPhotons, v: &mut V) {
-        self.grid.visit_lanes(self.lanes, on, x, r, map, sorted, v);
-    }
-}
-
 /// Irradiance at `x` (normal `n` on the viewing side) from one map: Σ w·Φ / (π r²) over the
 /// photons within the map's radius on the same side.
 #[inline(always)]
 pub fn irradiance<I: PhotonIndex>(index: &I, p: &IndexParams, sorted: &SortedPhotons, x: [f32; 3], n: [f32; 3], map: u32) -> Estimate {
-    irradiance_by(&mut Alone(index), true, p, sorted, x, n, map)
-}
-
-/// `irradiance` by `visits` (`on`: whether this item has a query; zero if not).
-#[inline(always)]
-#[allow(clippy::too_many_arguments)]
-pub fn irradiance_by<T: Visits>(visits: &mut T, on: bool, p: &IndexParams, sorted: &SortedPhotons, x: [f32; 3], n: [f32; 3], map: u32) -> Estimate {
     let r = p.radius[map as usize];
     let disc = Disc::new(p, x, n, r);
     // The constant filter (the default) in a loop of its own: a test of the filter at every
     // photon cost 8–13 % of the gather (H100, 2026-12-05).
     let (sum, found) = if p.filter == FILTER_CONSTANT {
         let mut s = Sum::<true> { disc, filter: p.filter, sum: [0.0; 3], found: 0 };
-        visits.visit(on, x, r, map, sorted, &mut s);
+        index.visit(x, r, map, sorted, &mut s);
         (s.sum, s.found)
     } else {
         let mut s = Sum::<false> { disc, filter: p.filter, sum: [0.0; 3], found: 0 };
-        visits.visit(on, x, r, map, sorted, &mut s);
+        index.visit(x, r, map, sorted, &mut s);
         (s.sum, s.found)
     };
     Estimate { irradiance: scale3(sum, 1.0 / (core::f32::consts::PI * r * r)), found }
@@ -1649,50 +1397,28 @@ pub fn gather<I: PhotonIndex, P: Store<PathState> + ?Sized, L: Store<u32> + Atom
     points: &[u32],
     next_points: &mut L,
 ) {
-    gather_by(i, p, &mut Alone(index), rays, sorted, paths, points, next_points);
-}
-
-/// `gather` by `visits`: every item calls it (items past the count and paths that are not
-/// gather points take part in a `Together` visit, counting nothing).
-#[inline(always)]
-#[allow(clippy::too_many_arguments)]
-pub fn gather_by<T: Visits, P: Store<PathState> + ?Sized, L: Store<u32> + AtomicStore + ?Sized>(
-    i: u32,
-    p: &IndexParams,
-    visits: &mut T,
-    rays: &[Ray],
-    sorted: &SortedPhotons,
-    paths: &mut P,
-    points: &[u32],
-    next_points: &mut L,
-) {
-    let mut on = i < p.count;
+    if i >= p.count {
+        return;
+    }
     let mut k = i as usize;
-    if on && p.gather_flags & GATHER_LISTED != 0 {
+    if p.gather_flags & GATHER_LISTED != 0 {
         if i >= points[0] {
-            on = false;
-        } else {
-            k = points[1 + i as usize] as usize;
+            return;
         }
+        k = points[1 + i as usize] as usize;
     }
-    let mut path = if on { paths.load(k) } else { PathState::default() };
-    let gathers = on && path.flags & PATH_GATHER != 0;
-    let g = if gathers { rays[k] } else { Ray::default() };
-    let edges = p.gather_flags & GATHER_EDGES != 0;
-    let near_edge = edges && path.flags & PATH_NEAR_EDGE != 0;
-    // A point near an edge leaves the global map (map 0) to the final gather.
-    let first = if near_edge { p.first_map.max(1) } else { p.first_map };
-    let mut e = [0.0; 3];
-    let mut map = 0;
-    while map < p.maps {
-        let want = gathers && map >= first;
-        let est = irradiance_by(visits, want, p, sorted, g.origin, g.dir, map);
-        if want {
-            e = add3(e, est.irradiance);
+    let mut path = paths.load(k);
+    if path.flags & PATH_GATHER != 0 {
+        let g = rays[k];
+        let edges = p.gather_flags & GATHER_EDGES != 0;
+        let near_edge = edges && path.flags & PATH_NEAR_EDGE != 0;
+        let mut e = [0.0; 3];
+        // A point near an edge leaves the global map (map 0) to the final gather.
+        let mut map = if near_edge { p.first_map.max(1) } else { p.first_map };
+        while map < p.maps {
+            e = add3(e, irradiance(index, p, sorted, g.origin, g.dir, map).irradiance);
+            map += 1;
         }
-        map += 1;
-    }
-    if gathers {
         path.radiance = add3(path.radiance, mul3(path.throughput, e));
         if edges {
             if near_edge {
