@@ -17,7 +17,7 @@
 //! it visits. Cells may be thinner than the rounding of a ray's t at their planes (any ray from
 //! far enough away sees them so): the traversals resolve that (the rules in `kdray_shared::kdtree`, `plane_band`); planes
 //! stay out of gaps narrower than 2^-18 of the scene's extent (`MIN_GAP`) for speed only.
-use super::clip::{clipped_bounds, overlap, tri_bounds, Bounds};
+use super::clip::{overlap, tri_bounds, Bounds, ClipScratch};
 use crate::error::{bail, Result};
 use kdray_shared::aabb::Aabb;
 use kdray_shared::kdtree::{KdNode, KdTree, MAX_DEPTH};
@@ -152,16 +152,77 @@ const END: u8 = 0;
 const PLANAR: u8 = 1;
 const START: u8 = 2;
 
+/// Sorts events by position (`f32::total_cmp`), then kind; the order of a triangle's equal
+/// events among others' is free (nothing reads it). As integers (position, kind, triangle)
+/// where the triangle ids fit 30 bits: sorted faster than the structs by comparator.
 fn sort_events(e: &mut [Event]) {
-    e.sort_unstable_by(|a, b| a.pos.total_cmp(&b.pos).then(a.kind.cmp(&b.kind)));
+    const TRI_BITS: u32 = 30;
+    if e.len() < 2 || e.len() >= 1 << TRI_BITS || e.iter().any(|x| x.tri >> TRI_BITS != 0) {
+        e.sort_unstable_by(|a, b| a.pos.total_cmp(&b.pos).then(a.kind.cmp(&b.kind)));
+        return;
+    }
+    let mut keys: Vec<u64> = e.iter().map(|x| ordered_key(x.pos, x.kind) << TRI_BITS | x.tri as u64).collect();
+    keys.sort_unstable();
+    for (x, &key) in e.iter_mut().zip(&keys) {
+        let ordered = (key >> (TRI_BITS + 2)) as u32;
+        let b = if ordered >> 31 != 0 { ordered & !(1 << 31) } else { !ordered };
+        *x = Event { pos: f32::from_bits(b), kind: ((key >> TRI_BITS) & 3) as u8, tri: (key & ((1 << TRI_BITS) - 1)) as u32 };
+    }
+}
+
+/// An event at `pos` of `kind` as 34 bits whose order is `f32::total_cmp` on the position,
+/// then the kind.
+fn ordered_key(pos: f32, kind: u8) -> u64 {
+    let b = pos.to_bits();
+    let ordered = if b >> 31 != 0 { !b } else { b | 1 << 31 };
+    (ordered as u64) << 2 | kind as u64
 }
 
 /// An event at `pos` of `kind` as an integer whose order is `sort_events`'s (`f32::total_cmp`
 /// on the position, then the kind).
+/// -0 is written as 0: the sweep treats them as one position, wherever their events sort (the
+/// counts at the end of a run, the planes between runs, are the same).
 fn event_key(pos: f32, kind: u8) -> u64 {
-    let b = pos.to_bits();
-    let ordered = if b >> 31 != 0 { !b } else { b | 1 << 31 };
-    (ordered as u64) << 2 | kind as u64
+    ordered_key(pos + 0.0, kind)
+}
+
+/// What the sweep reads of an event: `Event`s, or `event_key`s (`Ctx::build_small`).
+trait SweepEvent: Copy {
+    fn pos(&self) -> f32;
+    fn kind(&self) -> u8;
+    /// Whether the two lie at the same position (`==`: 0 and -0 are the same).
+    fn same_pos(&self, other: &Self) -> bool;
+}
+
+impl SweepEvent for Event {
+    #[inline(always)]
+    fn pos(&self) -> f32 {
+        self.pos
+    }
+    #[inline(always)]
+    fn kind(&self) -> u8 {
+        self.kind
+    }
+    #[inline(always)]
+    fn same_pos(&self, other: &Self) -> bool {
+        self.pos == other.pos
+    }
+}
+
+impl SweepEvent for u64 {
+    #[inline(always)]
+    fn pos(&self) -> f32 {
+        key_event(*self).pos
+    }
+    #[inline(always)]
+    fn kind(&self) -> u8 {
+        (*self & 3) as u8
+    }
+    /// The same bits (`event_key` writes -0 as 0).
+    #[inline(always)]
+    fn same_pos(&self, other: &Self) -> bool {
+        *self >> 2 == *other >> 2
+    }
 }
 
 /// The event of `event_key` (its triangle unknown: 0).
@@ -330,6 +391,19 @@ struct Ctx<'a> {
 /// the coordinates, so a scene far from the origin gets the tree it gets at the origin.
 const MIN_GAP: f32 = 1.0 / 262_144.0;
 
+/// `Ctx::build_small`'s stack of its nodes' triangles and bounds, and one axis's event keys.
+#[derive(Default)]
+struct Small {
+    tris: Vec<u32>,
+    bounds: Vec<Bounds>,
+    keys: Vec<u64>,
+    clip: ClipScratch,
+}
+
+thread_local! {
+    static SMALL_STACK: std::cell::RefCell<Small> = std::cell::RefCell::new(Small::default());
+}
+
 /// Nodes of at most this many triangles are built by `Ctx::build_small`.
 const SMALL: usize = 32;
 
@@ -351,7 +425,7 @@ impl Ctx<'_> {
     /// The sweep along axis `k` over its events `ev` (sorted by `sort_events`) of a node of `n`
     /// triangles: `best` becomes the cheapest candidate plane so far (the first of equal costs).
     #[allow(clippy::too_many_arguments)]
-    fn sweep_axis(&self, ev: &[Event], k: usize, n: usize, cell: &Bounds, half_area: f64, budget: f64, best: &mut Option<Split>) {
+    fn sweep_axis<E: SweepEvent>(&self, ev: &[E], k: usize, n: usize, cell: &Bounds, half_area: f64, budget: f64, best: &mut Option<Split>) {
         let (lo, hi) = (cell.0[k], cell.1[k]);
         let (mut nl, mut nr) = (0usize, n);
         let cost = AxisCost::new(self, cell, k, half_area);
@@ -368,21 +442,30 @@ impl Ctx<'_> {
         };
         if let Some(first) = ev.first() {
             // Empty space below the geometry: keep the cut close to it.
-            let pos = lo + (first.pos - lo) * (1.0 - EMPTY_MARGIN);
-            if pos < first.pos && first.pos - lo >= self.min_gap {
+            let first = first.pos();
+            let pos = lo + (first - lo) * (1.0 - EMPTY_MARGIN);
+            if pos < first && first - lo >= self.min_gap {
                 consider(pos, 0, n, best);
             }
         }
         // Event by event (the counts at the end of a run of equal positions are those after
         // all its ends, planars and starts, whatever their order): a candidate after each run.
+        // Positions are read (decoded, for keys) only at the ends of runs.
         for i in 0..ev.len() {
             let e = ev[i];
-            nl += (e.kind != END) as usize;
-            nr -= (e.kind != START) as usize;
-            let p = e.pos;
-            let (upper, pos) = match ev.get(i + 1) {
-                Some(next) if next.pos == p => continue,
-                Some(next) => (next.pos, p + (next.pos - p) * 0.5),
+            let kind = e.kind();
+            nl += (kind != END) as usize;
+            nr -= (kind != START) as usize;
+            let next = ev.get(i + 1);
+            if next.is_some_and(|n| n.same_pos(&e)) {
+                continue;
+            }
+            let p = e.pos();
+            let (upper, pos) = match next {
+                Some(next) => {
+                    let next = next.pos();
+                    (next, p + (next - p) * 0.5)
+                }
                 // Empty space above the geometry.
                 None => (hi, p + (hi - p) * EMPTY_MARGIN),
             };
@@ -448,8 +531,9 @@ impl Ctx<'_> {
         }
         let c = out.interior(idx, split.axis, split.pos);
         if n > self.opt.parallel_threshold {
-            let (l, r) = rayon::join(|| self.subtree(left), || self.subtree(right));
-            out.append(l, c);
+            // The left subtree straight into `out` (the nodes and order `append` gave it), the
+            // right one on its own, to be appended (copied) after.
+            let ((), r) = rayon::join(|| self.build(left, out, c), || self.subtree(right));
             out.append(r, c + 1);
         } else {
             self.build(left, out, c);
@@ -498,6 +582,7 @@ impl Ctx<'_> {
         // listed (their indices in each child) for their new events.
         let mut local = vec![0u32; n];
         let mut straddlers: Vec<[u32; 2]> = Vec::with_capacity(ns);
+        let mut clip = ClipScratch::default();
         for i in 0..n {
             let g = w.tris[i];
             match side[i] {
@@ -516,14 +601,15 @@ impl Ctx<'_> {
                     }
                 }
                 _ => {
-                    let mut ids = [0u32; 2];
-                    for (c, (cell, cw, is_leaf)) in [(lcell, &mut lw, l_leaf), (rcell, &mut rw, r_leaf)].into_iter().enumerate() {
-                        ids[c] = cw.tris.len() as u32;
-                        cw.tris.push(g);
-                        if is_leaf {
-                            continue;
-                        }
-                        cw.bounds.push(self.clip_into(g, &w.bounds[i], cell));
+                    let ids = [lw.tris.len() as u32, rw.tris.len() as u32];
+                    lw.tris.push(g);
+                    rw.tris.push(g);
+                    let [lb, rb] = self.clip_both(&mut clip, g, &w.bounds[i], &w.cell, k, p, [!l_leaf, !r_leaf]);
+                    if !l_leaf {
+                        lw.bounds.push(lb);
+                    }
+                    if !r_leaf {
+                        rw.bounds.push(rb);
                     }
                     straddlers.push(ids);
                 }
@@ -683,91 +769,114 @@ impl Ctx<'_> {
     }
 
     /// `build` for a node of at most `SMALL` triangles (`tris`, their clipped `bounds`): the
-    /// same tree, with every array of it and its subtree on the stack and each axis's events
-    /// sorted afresh per node instead of carried down. Most nodes are this small (2.3 of the
-    /// conference's 2.6 million split nodes hold under 8 triangles), and there the lists'
-    /// allocation and upkeep cost more than sorting a few events.
+    /// same tree, with each axis's events sorted afresh per node instead of carried down. Most
+    /// nodes are this small (2.3 of the conference's 2.6 million split nodes hold under 8
+    /// triangles), and there the lists' allocation and upkeep cost more than sorting a few
+    /// events. The subtree's triangles and bounds live on one stack per thread (`Small`), no
+    /// arrays zeroed or allocated per node.
     #[allow(clippy::too_many_arguments)]
     fn build_small(&self, tris: &[u32], bounds: &[Bounds], cell: Bounds, depth: u32, budget: f64, out: &mut Flat, idx: usize) {
-        let n = tris.len();
-        debug_assert!(n <= SMALL && bounds.len() == n);
+        SMALL_STACK.with(|s| {
+            let mut s = s.borrow_mut();
+            s.tris.clear();
+            s.bounds.clear();
+            s.tris.extend_from_slice(tris);
+            s.bounds.extend_from_slice(bounds);
+            self.build_small_at(&mut s, 0, tris.len(), !bounds.is_empty(), cell, depth, budget, out, idx);
+        })
+    }
+
+    /// `build_small` of the node whose triangles are `s.tris[at..at + n]` (and bounds, unless
+    /// it is a leaf at once, `s.bounds[at..at + n]`); its children go on top of the stack, and
+    /// the stack is back as it was on return.
+    #[allow(clippy::too_many_arguments)]
+    fn build_small_at(&self, s: &mut Small, at: usize, n: usize, has_bounds: bool, cell: Bounds, depth: u32, budget: f64, out: &mut Flat, idx: usize) {
+        debug_assert!(n <= SMALL);
         if self.leaf_at_once(n, depth) {
-            return out.leaf(idx, tris);
+            return out.leaf(idx, &s.tris[at..at + n]);
         }
+        debug_assert!(has_bounds);
         let half_area = area(&cell) * 0.5;
         let mut best = None;
         if half_area > 0.0 {
             // Events as integers in `sort_events`'s order (sorted faster than the structs).
-            let mut keys = [0u64; 2 * SMALL];
-            let mut ev = [Event { pos: 0.0, kind: END, tri: 0 }; 2 * SMALL];
             for k in 0..3 {
-                let mut m = 0;
-                for b in bounds {
+                s.keys.clear();
+                for b in &s.bounds[at..at + n] {
                     if b.0[k] == b.1[k] {
-                        keys[m] = event_key(b.0[k], PLANAR);
-                        m += 1;
+                        s.keys.push(event_key(b.0[k], PLANAR));
                     } else {
-                        keys[m] = event_key(b.0[k], START);
-                        keys[m + 1] = event_key(b.1[k], END);
-                        m += 2;
+                        s.keys.push(event_key(b.0[k], START));
+                        s.keys.push(event_key(b.1[k], END));
                     }
                 }
-                keys[..m].sort_unstable();
-                for (e, &key) in ev.iter_mut().zip(&keys[..m]) {
-                    *e = key_event(key);
-                }
-                self.sweep_axis(&ev[..m], k, n, &cell, half_area, budget, &mut best);
+                s.keys.sort_unstable();
+                self.sweep_axis(&s.keys, k, n, &cell, half_area, budget, &mut best);
             }
         }
         let split = match best {
-            Some(s) if s.cost < self.opt.k_i as f64 * n as f64 * half_area => s,
-            _ => return out.leaf(idx, tris),
+            Some(sp) if sp.cost < self.opt.k_i as f64 * n as f64 * half_area => sp,
+            _ => return out.leaf(idx, &s.tris[at..at + n]),
         };
         let (k, p) = (split.axis, split.pos);
         let (mut lcell, mut rcell) = (cell, cell);
         lcell.1[k] = p;
         rcell.0[k] = p;
         let (mut nl, mut nr) = (0usize, 0usize);
-        for b in bounds {
+        for b in &s.bounds[at..at + n] {
             let sd = side(b, k, p);
             nl += (sd & 1) as usize;
             nr += (sd >> 1) as usize;
         }
         let (l_leaf, r_leaf) = (self.leaf_at_once(nl, depth + 1), self.leaf_at_once(nr, depth + 1));
-        let mut lt = [0u32; SMALL];
-        let mut rt = [0u32; SMALL];
+        // The children on top of the stack: left at `base`, right at `base + nl`.
+        let base = s.tris.len();
         let empty: Bounds = ([0.0; 3], [0.0; 3]);
-        let mut lb = [empty; SMALL];
-        let mut rb = [empty; SMALL];
-        let (mut il, mut ir) = (0, 0);
-        for (i, b) in bounds.iter().enumerate() {
-            let g = tris[i];
-            let sd = side(b, k, p);
+        s.tris.resize(base + nl + nr, 0);
+        s.bounds.resize(base + nl + nr, empty);
+        let (mut il, mut ir) = (base, base + nl);
+        for i in at..at + n {
+            let (g, b) = (s.tris[i], s.bounds[i]);
+            let sd = side(&b, k, p);
+            let [cl, cr] = if sd == 3 { self.clip_both(&mut s.clip, g, &b, &cell, k, p, [!l_leaf, !r_leaf]) } else { [b, b] };
             if sd & 1 != 0 {
-                lt[il] = g;
-                if !l_leaf {
-                    lb[il] = if sd == 3 { self.clip_into(g, b, lcell) } else { *b };
-                }
+                s.tris[il] = g;
+                s.bounds[il] = cl;
                 il += 1;
             }
             if sd & 2 != 0 {
-                rt[ir] = g;
-                if !r_leaf {
-                    rb[ir] = if sd == 3 { self.clip_into(g, b, rcell) } else { *b };
-                }
+                s.tris[ir] = g;
+                s.bounds[ir] = cr;
                 ir += 1;
             }
         }
         let c = out.interior(idx, k, p);
-        self.build_small(&lt[..nl], &lb[..if l_leaf { 0 } else { nl }], lcell, depth + 1, share(budget, nl, nl + nr), out, c);
-        self.build_small(&rt[..nr], &rb[..if r_leaf { 0 } else { nr }], rcell, depth + 1, share(budget, nr, nl + nr), out, c + 1);
+        self.build_small_at(s, base, nl, !l_leaf, lcell, depth + 1, share(budget, nl, nl + nr), out, c);
+        self.build_small_at(s, base + nl, nr, !r_leaf, rcell, depth + 1, share(budget, nr, nl + nr), out, c + 1);
+        s.tris.truncate(base);
+        s.bounds.truncate(base);
     }
 
-    /// The bounds of triangle `g` (bounds `b`) clipped into child cell `cell`; where clipping
-    /// leaves nothing (numerically), the box overlap instead (conservative).
-    fn clip_into(&self, g: u32, b: &Bounds, cell: Bounds) -> Bounds {
+    /// The bounds of straddling triangle `g` (bounds `b`) clipped into the children of `cell`
+    /// split at `p` along axis `k` that `want` them (left, right; the others' entries are
+    /// `b`), the planes they share clipped once where both do; where clipping leaves nothing
+    /// (numerically), the box overlap instead (conservative).
+    #[allow(clippy::too_many_arguments)]
+    fn clip_both(&self, c: &mut ClipScratch, g: u32, b: &Bounds, cell: &Bounds, k: usize, p: f32, want: [bool; 2]) -> [Bounds; 2] {
+        let (mut lcell, mut rcell) = (*cell, *cell);
+        lcell.1[k] = p;
+        rcell.0[k] = p;
         let t = &self.tris[g as usize];
-        clipped_bounds([t.v0, t.v1, t.v2], cell).unwrap_or_else(|| overlap(*b, cell))
+        let v = [t.v0, t.v1, t.v2];
+        match want {
+            [true, true] => {
+                let [l, r] = c.split(v, *cell, k, p);
+                [l.unwrap_or_else(|| overlap(*b, lcell)), r.unwrap_or_else(|| overlap(*b, rcell))]
+            }
+            [true, false] => [c.bounds(v, lcell).unwrap_or_else(|| overlap(*b, lcell)), *b],
+            [false, true] => [*b, c.bounds(v, rcell).unwrap_or_else(|| overlap(*b, rcell))],
+            [false, false] => [*b, *b],
+        }
     }
 }
 
@@ -1004,6 +1113,22 @@ mod tests {
             seen[*p as usize] = true;
         }
         assert!(seen.iter().all(|x| *x));
+    }
+
+    /// `sort_events` as integers orders events as the comparator does (position by
+    /// `total_cmp`, then kind), -0 and 0 and equal positions included.
+    #[test]
+    fn event_sort_matches_the_comparator() {
+        let pos = [0.5f32, -0.0, 0.0, 1.0, -2.5, 0.5, 1e-30, -1e-30, 3.0];
+        let mut ev: Vec<Event> = (0..90u32).map(|i| Event { pos: pos[(i * 7 % 9) as usize], kind: (i % 3) as u8, tri: i }).collect();
+        let mut want = ev.clone();
+        want.sort_by(|a, b| a.pos.total_cmp(&b.pos).then(a.kind.cmp(&b.kind)));
+        sort_events(&mut ev);
+        let key = |e: &Event| (e.pos.to_bits(), e.kind);
+        assert_eq!(ev.iter().map(key).collect::<Vec<_>>(), want.iter().map(key).collect::<Vec<_>>());
+        let mut tris: Vec<u32> = ev.iter().map(|e| e.tri).collect();
+        tris.sort_unstable();
+        assert_eq!(tris, (0..90).collect::<Vec<_>>());
     }
 
     /// The exact sweep's trees stay as they were (a regression pin: 9461bea built these, before
