@@ -776,6 +776,9 @@ impl Ctx<'_> {
     /// arrays zeroed or allocated per node.
     #[allow(clippy::too_many_arguments)]
     fn build_small(&self, tris: &[u32], bounds: &[Bounds], cell: Bounds, depth: u32, budget: f64, out: &mut Flat, idx: usize) {
+        // The borrow lasts the whole subtree: nothing under `build_small_at` may reach rayon
+        // (a `join` or parallel sort there could run another `build_small` on this thread
+        // while it is held, and `borrow_mut` would panic) or call `build`.
         SMALL_STACK.with(|s| {
             let mut s = s.borrow_mut();
             s.tris.clear();
