@@ -749,7 +749,7 @@ pub fn run(cli: Cli) -> Result<()> {
                 (Ok(o), _) => o,
                 (Err(e), Some(j)) => {
                     j.reduce_photons(Err(kdray::Error::InvalidInput(format!("{e:#}"))), &photon_options(false), &cam)?;
-                    return Err(e);
+                    return handed_over(j, e);
                 }
                 (Err(e), None) => return Err(e),
             };
@@ -851,7 +851,7 @@ pub fn run(cli: Cli) -> Result<()> {
                 (Ok(None), _) => return Ok(()),
                 (Err(e), Some(j)) if !reduced.get() => {
                     j.reduce_photons(Err(kdray::Error::InvalidInput(format!("{e:#}"))), &photon_options(false), &cam)?;
-                    return Err(e);
+                    return handed_over(j, e);
                 }
                 (Err(e), _) => return Err(e),
             };
@@ -903,6 +903,18 @@ impl Job {
     fn reduce_photons(&self, _: kdray::Result<pm::PhotonPart>, _: &PhotonOptions, _: &kdray_shared::Camera) -> kdray::Result<Option<pm::PhotonPart>> {
         match *self {}
     }
+}
+
+/// How a rank ends that handed its error `e` to the reduction: rank 0 fails with it; another
+/// rank says so and ends successfully, as rank 0 reports the failure and exits non-zero once it
+/// has written the image of the other ranks' units (`mpirun` aborts the whole job when a rank
+/// exits non-zero, which could kill rank 0 before that: the passes done would be lost).
+fn handed_over(j: &Job, e: anyhow::Error) -> Result<()> {
+    if j.rank() == 0 {
+        return Err(e);
+    }
+    eprintln!("error: rank {}: {e:#} (rank 0 reports it and writes the other ranks' image)", j.rank());
+    Ok(())
 }
 
 /// The MPI job, with `--mpi`.
