@@ -164,9 +164,7 @@ fn sort_events(e: &mut [Event]) {
     let mut keys: Vec<u64> = e.iter().map(|x| ordered_key(x.pos, x.kind) << TRI_BITS | x.tri as u64).collect();
     keys.sort_unstable();
     for (x, &key) in e.iter_mut().zip(&keys) {
-        let ordered = (key >> (TRI_BITS + 2)) as u32;
-        let b = if ordered >> 31 != 0 { ordered & !(1 << 31) } else { !ordered };
-        *x = Event { pos: f32::from_bits(b), kind: ((key >> TRI_BITS) & 3) as u8, tri: (key & ((1 << TRI_BITS) - 1)) as u32 };
+        *x = Event { tri: (key & ((1 << TRI_BITS) - 1)) as u32, ..key_event(key >> TRI_BITS) };
     }
 }
 
@@ -225,7 +223,7 @@ impl SweepEvent for u64 {
     }
 }
 
-/// The event of `event_key` (its triangle unknown: 0).
+/// The event of `event_key` or `ordered_key` (its triangle unknown: 0).
 fn key_event(key: u64) -> Event {
     let ordered = (key >> 2) as u32;
     let b = if ordered >> 31 != 0 { ordered & !(1 << 31) } else { !ordered };
