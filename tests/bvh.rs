@@ -50,7 +50,12 @@ fn enclosed(b: &BvhData, i: usize) -> Vec<usize> {
 }
 
 fn check_structure(name: &str, s: &Scene) -> BvhData {
-    let b = bvh::try_build(&s.triangles).unwrap();
+    check_tree(name, s, bvh::try_build(&s.triangles).unwrap())
+}
+
+/// `BvhData::validate`, every triangle in exactly one leaf under boxes that enclose it, each
+/// leaf triangle the scene's, the depth within the stack.
+fn check_tree(name: &str, s: &Scene, b: BvhData) -> BvhData {
     b.validate(s.triangles.len()).unwrap();
     let mut under = enclosed(&b, 0);
     under.sort();
@@ -337,4 +342,93 @@ fn bvh_trees_are_pinned() {
         pinned.push((spec, nodes, leaves, depth, sum));
     }
     assert_eq!(built, pinned);
+}
+
+/// The kernels' linear BVH build (`kdray::lbvh`), natively and on the GPU: valid trees (the
+/// checks above) that find the oracle's hits, on the built-in scenes and the inputs made to
+/// break a builder; the two runtimes build the same binary tree (the same SAH cost) wherever
+/// no Morton cell holds more than `REFINE` triangles.
+#[test]
+fn the_kernels_build_valid_trees_that_find_the_oracles_hits() {
+    let v = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+    let f: Vec<[u32; 3]> = (0..3000).flat_map(|_| [[0, 1, 2], [0, 1, 3]]).collect();
+    let mut scenes: Vec<(String, Scene, Option<Vec3>)> = ["cornell", "cornell-glass", "cornell-chair", "chairs:16"].iter().map(|n| (n.to_string(), scene::load(n).unwrap(), None)).collect();
+    scenes.push(("one".into(), common::mesh_scene("one", &[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], &[[0, 1, 2]]), None));
+    scenes.push(("two".into(), common::mesh_scene("two", &v, &[[0, 1, 2], [0, 1, 3]]), None));
+    scenes.push(("stacked".into(), common::mesh_scene("stacked", &v, &f), None));
+    // The chain of `a_chain_deeper_than_the_stack_is_balanced`: positions 0.8^k, most of them
+    // in one Morton cell.
+    let (mut cv, mut cf) = (Vec::new(), Vec::new());
+    for k in 0..120 {
+        let x = (0.8f32).powi(k);
+        let i = cv.len() as u32;
+        cv.extend([[x, 0.0, 0.0], [x + x * 0.2, 0.0, 0.0], [x, x * 0.2, 0.0]]);
+        cf.push([i, i + 1, i + 2]);
+    }
+    scenes.push(("chain".into(), common::mesh_scene("chain", &cv, &cf), None));
+    // Rays from the centre (elsewhere the triangle test's products leave f32's range).
+    for (name, center, radius) in [("huge", Vec3::splat(1e17), 3e16), ("tiny", Vec3::splat(3e-8), 1e-8), ("far", Vec3::new(-3.0e7, 1.0e5, 7.0e6), 0.5)] {
+        let (v, f) = common::icosphere(center, radius, 3);
+        scenes.push((name.into(), common::mesh_scene(name, &v, &f), Some(center)));
+    }
+    let gpu = common::gpu();
+    for (name, s, center) in &scenes {
+        let rays = match center {
+            None => rays_for(s, 20_000, 13),
+            Some(c) => common::random_dirs(20_000, 9).into_iter().map(|d| Ray::new(c.to_array(), d, 0.0, f32::INFINITY)).collect(),
+        };
+        let native = kdray::lbvh::build_on(&NATIVE, &s.triangles).unwrap();
+        let b = check_tree(&format!("{name} (kernels, native)"), s, native.bvh);
+        check_hits(&format!("{name} (kernels, native)"), s, &b, &rays);
+        if let Some(g) = gpu {
+            let built = kdray::lbvh::build_on(g, &s.triangles).unwrap();
+            let c = check_tree(&format!("{name} (kernels, {})", g.name()), s, built.bvh);
+            check_hits(&format!("{name} (kernels, {})", g.name()), s, &c, &rays);
+            if *name != "stacked" && *name != "chain" {
+                assert_eq!((c.sah_cost, c.leaves, c.nodes.len(), c.depth), (b.sah_cost, b.leaves, b.nodes.len(), b.depth), "{name}: the GPU's tree differs from the native one");
+            }
+        }
+    }
+    // A triangle spanning nearly all of f32: a tree, or the quantisation's error (as the host's
+    // builder); a vertex that is not finite: an error, never a tree.
+    let big = common::mesh_scene("limits", &[[-3e38f32, 0.0, 0.0], [3e38, 0.0, 0.0], [0.0, 3e38, 1.0]], &[[0, 1, 2]]);
+    for rt in std::iter::once(&NATIVE as &dyn Runtime).chain(gpu.map(|g| g as &dyn Runtime)) {
+        match kdray::lbvh::build_on(rt, &big.triangles) {
+            Ok(b) => check_hits("limits (kernels)", &big, &b.bvh, &[Ray::new([0.0, 1.0, 5.0], [0.0, 0.0, -1.0], 0.0, f32::INFINITY)]),
+            Err(e) => assert!(e.to_string().contains("quantise"), "{e}"),
+        }
+        let mut bad = scene::load("cornell").unwrap().triangles;
+        bad[5].v1[2] = f32::NAN;
+        let e = kdray::lbvh::build_on(rt, &bad).unwrap_err().to_string();
+        assert!(e.contains("triangle 5") && e.contains("finite"), "{e}");
+    }
+}
+
+/// `render --bvh-build kernels`: the same image as the host's BVH (the traversal is exact, so
+/// the tree that finds the hits does not change them), natively and on the GPU.
+#[test]
+fn a_render_with_the_kernels_bvh_is_the_hosts_image() {
+    let dir = std::env::temp_dir().join(format!("kdray-lbvh-render-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let mut devices = vec!["cpu"];
+    if common::gpu().is_some() {
+        devices.push("gpu");
+    }
+    for device in devices {
+        let mut images = Vec::new();
+        for how in ["host", "kernels"] {
+            let out = dir.join(format!("{device}-{how}.png"));
+            let o = std::process::Command::new(env!("CARGO_BIN_EXE_kdray"))
+                .args(["render", "--scene", "cornell-chair", "--size", "64", "--passes", "2", "--device", device, "--bvh-build", how, "--out"])
+                .arg(&out)
+                .output()
+                .unwrap();
+            let said = String::from_utf8_lossy(&o.stdout).to_string();
+            assert!(o.status.success(), "{device} {how}: {said}{}", String::from_utf8_lossy(&o.stderr));
+            assert!(said.contains(if how == "host" { "by the host's binned SAH" } else { "by the kernels' linear build" }), "{said}");
+            images.push(std::fs::read(out.with_extension("pfm")).unwrap());
+        }
+        assert!(images[0] == images[1], "{device}: the kernels' BVH rendered another image");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -9,20 +9,20 @@
 //! 2. Collapse to eight wide: a node's children are its binary children, then repeatedly the
 //!    interior child of largest surface area is replaced by its two children until there are
 //!    eight or only leaves.
-//! 3. Slots by octant: the child lying first along octant o's diagonal (smallest projection of
-//!    its centroid on it) goes to slot o, greedily over all (child, slot) costs, so the
-//!    traversal's `slot ^ (7 − octant)` order is roughly front to back.
-//! 4. Quantisation: per node and axis a power-of-two step and an origin, the node's lower bound
-//!    rounded down to a multiple of the finest power of two (at most the step) such that
-//!    every `origin + step · q` (q = 0..=255) is exact in `f32`; each child's box is rounded
-//!    outwards onto the grid (checked in `f32`, as the kernels compute it).
+//! 3. Each wide node encoded by `kdray_shared::bvh::build` (`assign_slots`, `encode_node`),
+//!    the rules the kernels' own build (`crate::lbvh`) encodes its nodes by too: slots by
+//!    octant (the child lying first along octant o's diagonal goes to slot o, greedily over all
+//!    (child, slot) costs, so the traversal's `slot ^ (7 − octant)` order is roughly front to
+//!    back), and per node and axis a power-of-two step and an origin on which every child's
+//!    box is rounded outwards, every grid value exact in `f32` (`quantise_axis`; the `f64`
+//!    rule it replaced is its test's oracle).
 //!
 //! Nodes are laid out breadth first (children after their parent, a node's child nodes
 //! contiguous in slot order); leaf triangles are copied in the same order with their scene
 //! index in `Triangle::_pad`.
 use crate::error::{bail, Result};
+use kdray_shared::bvh::build::{self, SlotChild};
 use kdray_shared::bvh::{meta_is_node, BvhNode, BVH_WIDTH, MAX_BVH_DEPTH, MAX_LEAF_TRIS};
-use glam::UVec4;
 use kdray_shared::Triangle;
 use rayon::prelude::*;
 use std::collections::VecDeque;
@@ -324,86 +324,13 @@ fn wide_children(n: &Node2) -> Kids<'_> {
     }
     kids
 }
+/// The slots of `kids` (`build::assign_slots`).
 fn assign_slots<'a>(parent: &Bounds, kids: &Kids<'a>) -> [Option<&'a Node2>; BVH_WIDTH] {
-    let pc = parent.centroid();
-    // (cost, child, slot) as one integer in the order of cost (`f32::total_cmp`), then child,
-    // then slot: sorted without a comparison function.
-    let mut costs = [0u64; BVH_WIDTH * BVH_WIDTH];
-    let mut m = 0;
-    for i in 0..kids.len {
-        let c = kids.get(i).bounds().centroid();
-        for s in 0..BVH_WIDTH {
-            let dir = [if s & 4 != 0 { -1.0 } else { 1.0 }, if s & 2 != 0 { -1.0 } else { 1.0 }, if s & 1 != 0 { -1.0 } else { 1.0 }];
-            let cost: f32 = (0..3).map(|a| (c[a] - pc[a]) * dir[a]).sum();
-            let b = cost.to_bits();
-            let ordered = if b >> 31 != 0 { !b } else { b | 1 << 31 };
-            costs[m] = (ordered as u64) << 32 | (i as u64) << 8 | s as u64;
-            m += 1;
-        }
+    let mut centres = [[0.0f32; 3]; BVH_WIDTH];
+    for (i, c) in centres.iter_mut().enumerate().take(kids.len) {
+        *c = kids.get(i).bounds().centroid();
     }
-    costs[..m].sort_unstable();
-    let mut slots = [None; BVH_WIDTH];
-    let mut placed = [false; BVH_WIDTH];
-    for &key in &costs[..m] {
-        let (i, s) = ((key >> 8 & 0xff) as usize, (key & 0xff) as usize);
-        if !placed[i] && slots[s].is_none() {
-            slots[s] = Some(kids.get(i));
-            placed[i] = true;
-        }
-    }
-    slots
-}
-fn quantise_axis(lo: f32, hi: f32, kids: &[(f32, f32)]) -> Result<(i32, f32, [(u32, u32); BVH_WIDTH])> {
-    let extent = (hi as f64 - lo as f64).max(0.0);
-    let max_abs = lo.abs().max(hi.abs()) as f64;
-    // Steps from 2^-100 (no subnormal coordinate anywhere) to 2^119 (255 steps stay finite).
-    let mut e = if extent > 0.0 { (extent / 255.0).log2().ceil() as i32 } else { -100 };
-    if max_abs > 0.0 {
-        // Every grid value must be an f32 multiple of a power of two no coarser than the step.
-        e = e.max(max_abs.log2().floor() as i32 + 1 - 23);
-    }
-    e = e.max(-100);
-    while e <= 119 {
-        let s = (e as f64).exp2();
-        // The origin: `lo` rounded down to a multiple of 2^f, the finest power of two (at most
-        // the step) whose multiples below 2^(f + 24) in magnitude, every grid value
-        // origin + q·step among them, are all f32. The finer it is, the closer the origin lies
-        // to `lo`: a child whose box is flat at the node's lower bound is then flat on the grid
-        // too, not one step thick.
-        let reach = lo.abs() as f64 + 256.0 * s;
-        let f = e.min(reach.log2().floor() as i32 - 23).max(-100);
-        let q0 = (f as f64).exp2();
-        let k = (lo as f64 / q0).floor();
-        if k.abs() * q0 + 255.0 * s < (f as f64 + 24.0).exp2() {
-            let origin = (k * q0) as f32;
-            let s32 = s as f32;
-            let at = |q: u32| origin + s32 * q as f32;
-            let mut qs = [(0u32, 0u32); BVH_WIDTH];
-            let mut fits = true;
-            for (j, &(cl, ch)) in kids.iter().enumerate() {
-                let mut ql = ((cl as f64 - k * q0) / s).floor().max(0.0) as u32;
-                let mut qh = ((ch as f64 - k * q0) / s).ceil().max(0.0) as u32;
-                // As the kernels compute the coordinates: exact, and around the child's box.
-                while ql > 0 && at(ql) > cl {
-                    ql -= 1;
-                }
-                while qh <= 255 && at(qh) < ch {
-                    qh += 1;
-                }
-                // Every stored coordinate finite too (a box up against f32::MAX may round past it).
-                if qh > 255 || at(ql) > cl || !at(ql).is_finite() || !at(qh).is_finite() {
-                    fits = false;
-                    break;
-                }
-                qs[j] = (ql, qh);
-            }
-            if fits {
-                return Ok((e, origin, qs));
-            }
-        }
-        e += 1;
-    }
-    bail!(TooLarge: "a BVH node spans [{lo}, {hi}], too large to quantise")
+    build::assign_slots(parent.centroid(), &centres, kids.len).map(|k| (k != build::NO_CHILD).then(|| kids.get(k as usize)))
 }
 
 /// Builds the compressed 8-wide BVH over `tris`.
@@ -447,23 +374,21 @@ pub fn try_build(tris: &[Triangle]) -> Result<BvhData> {
         depth = depth.max(level);
         let pb = *n.bounds();
         let slots = assign_slots(&pb, &wide_children(n));
-        let mut node = BvhNode::default();
         let child_base = nodes.len();
         let tri_base = out_tris.len();
-        let mut imask = 0u32;
-        let mut meta = [0u32; BVH_WIDTH];
+        let mut out = [SlotChild::default(); BVH_WIDTH];
         for (s, k) in slots.iter().enumerate() {
+            let Some(k) = k else { continue };
+            let b = k.bounds();
+            out[s] = SlotChild { lo: b.lo, hi: b.hi, meta: 0 };
             match k {
-                None => {}
-                Some(Node2::Inner { .. }) => {
-                    imask |= 1 << s;
-                    meta[s] = 0b001_00000 | (24 + s as u32);
+                Node2::Inner { .. } => {
+                    out[s].meta = build::node_meta(s as u32);
                     nodes.push(BvhNode::default());
-                    queue.push_back((nodes.len() - 1, k.unwrap(), level + 1));
+                    queue.push_back((nodes.len() - 1, k, level + 1));
                 }
-                Some(Node2::Leaf { first, count, .. }) => {
-                    let offset = (out_tris.len() - tri_base) as u32;
-                    meta[s] = (((1u32 << count) - 1) << 5) | offset;
+                Node2::Leaf { first, count, .. } => {
+                    out[s].meta = build::leaf_meta(*count as u32, (out_tris.len() - tri_base) as u32);
                     for &p in &prims[*first..first + count] {
                         out_tris.push(Triangle { _pad: p, ..tris[p as usize] });
                     }
@@ -474,33 +399,9 @@ pub fn try_build(tris: &[Triangle]) -> Result<BvhData> {
         if nodes.len() > u32::MAX as usize / 2 {
             bail!(TooLarge: "the BVH needs more than 2^31 nodes");
         }
-        let mut q = [[0u32; BVH_WIDTH]; 6];
-        let mut exps = 0u32;
-        for a in 0..3 {
-            let mut kids = [(0.0f32, 0.0f32); BVH_WIDTH];
-            let mut m = 0;
-            for k in slots.iter().flatten() {
-                kids[m] = (k.bounds().lo[a], k.bounds().hi[a]);
-                m += 1;
-            }
-            let (e, origin, qs) = quantise_axis(pb.lo[a], pb.hi[a], &kids[..m])?;
-            node.origin_exp[a] = origin.to_bits();
-            exps |= ((e + 127) as u32) << (8 * a);
-            for (s, (ql, qh)) in slots.iter().enumerate().filter(|(_, k)| k.is_some()).map(|(s, _)| s).zip(qs) {
-                q[a][s] = ql;
-                q[3 + a][s] = qh;
-            }
-        }
-        node.origin_exp.w = exps | (imask << 24);
-        let pack = |v: &[u32; BVH_WIDTH]| -> [u32; 2] {
-            [v[0] | v[1] << 8 | v[2] << 16 | v[3] << 24, v[4] | v[5] << 8 | v[6] << 16 | v[7] << 24]
+        let Some(node) = build::encode_node(pb.lo, pb.hi, &out, child_base as u32, tri_base as u32) else {
+            bail!(TooLarge: "a BVH node spans [{:?}, {:?}], too large to quantise", pb.lo, pb.hi)
         };
-        let [m0, m1] = pack(&meta);
-        node.bases_meta = UVec4::new(child_base as u32, tri_base as u32, m0, m1);
-        let words = q.map(|v| pack(&v));
-        node.lo_x_y = UVec4::new(words[0][0], words[0][1], words[1][0], words[1][1]);
-        node.lo_z_hi_x = UVec4::new(words[2][0], words[2][1], words[3][0], words[3][1]);
-        node.hi_y_z = UVec4::new(words[4][0], words[4][1], words[5][0], words[5][1]);
         nodes[index] = node;
     }
     if depth > MAX_BVH_DEPTH {
@@ -617,6 +518,136 @@ impl BvhData {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `build::quantise_axis` as the old tests called it.
+    fn quantise_axis(lo: f32, hi: f32, kids: &[(f32, f32)]) -> Option<(i32, f32, [(u32, u32); BVH_WIDTH])> {
+        let mut k = [(0.0, 0.0); BVH_WIDTH];
+        k[..kids.len()].copy_from_slice(kids);
+        let g = build::quantise_axis(lo, hi, &k, kids.len())?;
+        Some((g.exp, g.origin, g.q.map(|[a, b]| (a, b))))
+    }
+
+    /// The grid rule in `f64` (the builder's until the rule moved into `kdray_shared` in `f32`
+    /// and integers): the oracle `quantise_axis` must equal.
+    fn reference_quantise(lo: f32, hi: f32, kids: &[(f32, f32)]) -> Option<(i32, f32, [(u32, u32); BVH_WIDTH])> {
+        let extent = (hi as f64 - lo as f64).max(0.0);
+        let max_abs = lo.abs().max(hi.abs()) as f64;
+        // Steps from 2^-100 (no subnormal coordinate anywhere) to 2^119 (255 steps stay finite).
+        let mut e = if extent > 0.0 { (extent / 255.0).log2().ceil() as i32 } else { -100 };
+        if max_abs > 0.0 {
+            // Every grid value must be an f32 multiple of a power of two no coarser than the step.
+            e = e.max(max_abs.log2().floor() as i32 + 1 - 23);
+        }
+        e = e.max(-100);
+        while e <= 119 {
+            let s = (e as f64).exp2();
+            // The origin: `lo` rounded down to a multiple of 2^f, the finest power of two (at most
+            // the step) whose multiples below 2^(f + 24) in magnitude, every grid value
+            // origin + q·step among them, are all f32. The finer it is, the closer the origin lies
+            // to `lo`: a child whose box is flat at the node's lower bound is then flat on the grid
+            // too, not one step thick.
+            let reach = lo.abs() as f64 + 256.0 * s;
+            let f = e.min(reach.log2().floor() as i32 - 23).max(-100);
+            let q0 = (f as f64).exp2();
+            let k = (lo as f64 / q0).floor();
+            if k.abs() * q0 + 255.0 * s < (f as f64 + 24.0).exp2() {
+                let origin = (k * q0) as f32;
+                let s32 = s as f32;
+                let at = |q: u32| origin + s32 * q as f32;
+                let mut qs = [(0u32, 0u32); BVH_WIDTH];
+                let mut fits = true;
+                for (j, &(cl, ch)) in kids.iter().enumerate() {
+                    let mut ql = ((cl as f64 - k * q0) / s).floor().max(0.0) as u32;
+                    let mut qh = ((ch as f64 - k * q0) / s).ceil().max(0.0) as u32;
+                    // As the kernels compute the coordinates: exact, and around the child's box.
+                    while ql > 0 && at(ql) > cl {
+                        ql -= 1;
+                    }
+                    while qh <= 255 && at(qh) < ch {
+                        qh += 1;
+                    }
+                    // Every stored coordinate finite too (a box up against f32::MAX may round past it).
+                    if qh > 255 || at(ql) > cl || !at(ql).is_finite() || !at(qh).is_finite() {
+                        fits = false;
+                        break;
+                    }
+                    qs[j] = (ql, qh);
+                }
+                if fits {
+                    return Some((e, origin, qs));
+                }
+            }
+            e += 1;
+        }
+        None
+    }
+
+    /// The shared rule in `f32` and integers (what the GPU build runs) gives the grids of the
+    /// `f64` rule exactly: random nodes from 2^-127 to 2^128 in magnitude, either sign, flat,
+    /// thin and wide, with children anywhere inside, at powers of two and next to them.
+    #[test]
+    fn the_shared_grid_rule_is_the_f64_rule() {
+        let mut rng = kdray_shared::rng::Rng::new(11, 0);
+        let mut next = move || rng.next_u32();
+        let (mut some, mut none) = (0, 0);
+        for i in 0..400_000u32 {
+            let r = next();
+            let mag = ((r % 255) as i32 - 127) as f32;
+            let unit = |r: u32| (r >> 8) as f32 / (1u32 << 24) as f32;
+            let sign = if r >> 31 == 0 { 1.0 } else { -1.0 };
+            let mut lo = sign * mag.exp2() * (1.0 + unit(next()));
+            if i % 7 == 0 {
+                lo = sign * mag.exp2(); // a power of two
+            } else if i % 7 == 1 {
+                lo = f32::from_bits((sign * mag.exp2()).to_bits().wrapping_sub(1)); // just below one
+            } else if i % 11 == 2 {
+                lo = 0.0;
+            }
+            let width = match i % 5 {
+                0 => 0.0,
+                1 => lo.abs() * 1e-6 * unit(next()),
+                2 => ((mag + (next() % 40) as f32 - 20.0).exp2()) * unit(next()),
+                3 => lo.abs() * 4.0 * unit(next()),
+                _ => ((next() % 250) as f32 - 125.0).exp2(),
+            };
+            let hi = lo + width;
+            if !lo.is_finite() || !hi.is_finite() || hi < lo {
+                continue;
+            }
+            let n = 1 + (next() % 8) as usize;
+            let mut kids = [(lo, hi); BVH_WIDTH];
+            for k in kids.iter_mut().take(n).skip(2) {
+                let (a, b) = (lo + (hi - lo) * unit(next()), lo + (hi - lo) * unit(next()));
+                *k = (a.min(b).max(lo), a.max(b).min(hi));
+            }
+            if n >= 2 {
+                kids[0] = (lo, lo + (hi - lo) * unit(next()));
+                kids[1] = (lo + (hi - lo) * unit(next()), hi);
+                kids[1].0 = kids[1].0.min(hi);
+            }
+            let got = quantise_axis(lo, hi, &kids[..n]);
+            let want = reference_quantise(lo, hi, &kids[..n]);
+            assert_eq!(got, want, "case {i}: [{lo:e}, {hi:e}] {:?}", &kids[..n]);
+            if got.is_some() { some += 1 } else { none += 1 }
+        }
+        // Where the finest power of two changes: |lo| + 2^(e + 8) at, just below and just above
+        // a power of two, for a node whose step is 2^e.
+        for e in -90..100 {
+            for g in 1..26 {
+                let a = (e as f32 + 8.0 + g as f32).exp2() - (e as f32 + 8.0).exp2();
+                for lo in [a, f32::from_bits(a.to_bits() - 1), f32::from_bits(a.to_bits() + 1)].into_iter().flat_map(|a| [a, -a]) {
+                    let hi = lo + 0.9 * 255.0 * (e as f32).exp2();
+                    if !lo.is_finite() || !hi.is_finite() {
+                        continue;
+                    }
+                    let kids = [(lo, lo + 0.3 * (hi - lo)), (lo + 0.5 * (hi - lo), hi)];
+                    assert_eq!(quantise_axis(lo, hi, &kids), reference_quantise(lo, hi, &kids), "[{lo:e}, {hi:e}]");
+                    some += 1;
+                }
+            }
+        }
+        assert!(some > 300_000 && none > 20, "{some} quantised, {none} not");
+    }
 
     /// Grids are exact in `f32` and enclose their children, the origin lies within a step below
     /// the node's lower bound, and a child flat at that bound is flat on the grid wherever the

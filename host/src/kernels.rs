@@ -1607,3 +1607,322 @@ impl Kernel for RasterHits<'_> {
         (self.cpu)(self, ts)
     }
 }
+
+/// The linear BVH build's kernels (`kdray_shared::bvh::build`), each over its `threads` items;
+/// `crate::bvh::gpu` records them.
+pub mod lbvh {
+    use super::*;
+    use kdray_shared::bvh::build;
+    use kdray_shared::{BuildBox, LbvhParams};
+
+    /// Each triangle's box into the list and level 0 of the range tree (`build::boxes`).
+    pub struct Boxes<'a> {
+        /// Triangles (`count`).
+        pub params: LbvhParams,
+        /// The scene's triangles.
+        pub tris: &'a Buffer<Triangle>,
+        /// Written: their boxes in scene order.
+        pub list: &'a Buffer<BuildBox>,
+        /// Written: level 0 of the range tree (the same boxes).
+        pub tree: &'a Buffer<BuildBox>,
+    }
+
+    impl Kernel for Boxes<'_> {
+        fn entry(&self) -> Cow<'static, str> {
+            "lbvh_boxes".into()
+        }
+        fn params(&self) -> &[u8] {
+            bytemuck::bytes_of(&self.params)
+        }
+        fn bindings(&self) -> Vec<Bind<'_>> {
+            vec![read("tris", self.tris), write("list", self.list), write("tree", self.tree)]
+        }
+        fn threads(&self) -> u32 {
+            self.params.count
+        }
+        fn run(&self, t: u32) {
+            // SAFETY: the native runtime's dispatch of this pass holds its bindings; item t
+            // writes element t of each output.
+            unsafe { build::boxes(t, &self.params, self.tris.host(), &mut self.list.host_store(), &mut self.tree.host_store()) }
+        }
+    }
+
+    /// One level of the range tree from the level below (`build::reduce`, `params.level` ≥ 1).
+    pub struct Reduce<'a> {
+        /// Triangles (`count`), the level, and its size as `threads`.
+        pub params: LbvhParams,
+        /// Items: the level's entries.
+        pub threads: u32,
+        /// The range tree: read below, written at the level.
+        pub tree: &'a Buffer<BuildBox>,
+    }
+
+    impl Kernel for Reduce<'_> {
+        fn entry(&self) -> Cow<'static, str> {
+            "lbvh_reduce".into()
+        }
+        fn params(&self) -> &[u8] {
+            bytemuck::bytes_of(&self.params)
+        }
+        fn bindings(&self) -> Vec<Bind<'_>> {
+            vec![write("tree", self.tree)]
+        }
+        fn threads(&self) -> u32 {
+            self.threads
+        }
+        fn run(&self, t: u32) {
+            // SAFETY: as `Boxes`; item t writes its entry of the level and reads two of the
+            // level below, which no item of this dispatch writes.
+            unsafe { build::reduce(t, &self.params, &mut self.tree.host_store()) }
+        }
+    }
+
+    /// Morton codes and sort keys (`build::morton`).
+    pub struct Morton<'a> {
+        /// Triangles, the key's bits, the range tree's root.
+        pub params: LbvhParams,
+        /// The boxes in scene order.
+        pub list: &'a Buffer<BuildBox>,
+        /// The range tree (its root: the scene's box).
+        pub tree: &'a Buffer<BuildBox>,
+        /// Written: each triangle's 60-bit code (two halves).
+        pub codes: &'a Buffer<[u32; 2]>,
+        /// Written: each triangle's sort key.
+        pub keys: &'a Buffer<u32>,
+    }
+
+    impl Kernel for Morton<'_> {
+        fn entry(&self) -> Cow<'static, str> {
+            "lbvh_morton".into()
+        }
+        fn params(&self) -> &[u8] {
+            bytemuck::bytes_of(&self.params)
+        }
+        fn bindings(&self) -> Vec<Bind<'_>> {
+            vec![read("list", self.list), read("tree", self.tree), write("codes", self.codes), write("keys", self.keys)]
+        }
+        fn threads(&self) -> u32 {
+            self.params.count
+        }
+        fn run(&self, t: u32) {
+            // SAFETY: as `Boxes`.
+            unsafe { build::morton(t, &self.params, self.list.host(), self.tree.host(), &mut self.codes.host_store(), &mut self.keys.host_store()) }
+        }
+    }
+
+    /// The sorted order by full codes within small cells, and level 0 of the range tree in it
+    /// (`build::refine`).
+    pub struct Refine<'a> {
+        /// Triangles and the key's bits.
+        pub params: LbvhParams,
+        /// The counting sort's order (by key).
+        pub order: &'a Buffer<u32>,
+        /// The counting sort's offsets (exact).
+        pub offsets: &'a Buffer<u32>,
+        /// Each triangle's code.
+        pub codes: &'a Buffer<[u32; 2]>,
+        /// The boxes in scene order.
+        pub list: &'a Buffer<BuildBox>,
+        /// Written: the triangles in sorted order.
+        pub sorted: &'a Buffer<u32>,
+        /// Written: their codes.
+        pub sorted_codes: &'a Buffer<[u32; 2]>,
+        /// Written: level 0 of the range tree, in sorted order.
+        pub tree: &'a Buffer<BuildBox>,
+    }
+
+    impl Kernel for Refine<'_> {
+        fn entry(&self) -> Cow<'static, str> {
+            "lbvh_refine".into()
+        }
+        fn params(&self) -> &[u8] {
+            bytemuck::bytes_of(&self.params)
+        }
+        fn bindings(&self) -> Vec<Bind<'_>> {
+            vec![
+                read("order", self.order),
+                read("offsets", self.offsets),
+                read("codes", self.codes),
+                read("list", self.list),
+                write("sorted", self.sorted),
+                write("sorted_codes", self.sorted_codes),
+                write("tree", self.tree),
+            ]
+        }
+        fn threads(&self) -> u32 {
+            self.params.count
+        }
+        fn run(&self, t: u32) {
+            // SAFETY: as `Boxes`; the items of a cell take distinct ranks, so each position is
+            // written once.
+            unsafe {
+                build::refine(
+                    t,
+                    &self.params,
+                    self.order.host(),
+                    self.offsets.host(),
+                    self.codes.host(),
+                    self.list.host(),
+                    &mut self.sorted.host_store(),
+                    &mut self.sorted_codes.host_store(),
+                    &mut self.tree.host_store(),
+                )
+            }
+        }
+    }
+
+    /// Karras's inner nodes (`build::hierarchy`).
+    pub struct Hierarchy<'a> {
+        /// Triangles.
+        pub params: LbvhParams,
+        /// The sorted codes.
+        pub sorted_codes: &'a Buffer<[u32; 2]>,
+        /// Written: the inner nodes.
+        pub nodes2: &'a Buffer<[u32; 4]>,
+    }
+
+    impl Kernel for Hierarchy<'_> {
+        fn entry(&self) -> Cow<'static, str> {
+            "lbvh_hierarchy".into()
+        }
+        fn params(&self) -> &[u8] {
+            bytemuck::bytes_of(&self.params)
+        }
+        fn bindings(&self) -> Vec<Bind<'_>> {
+            vec![read("sorted_codes", self.sorted_codes), write("nodes2", self.nodes2)]
+        }
+        fn threads(&self) -> u32 {
+            self.params.count.saturating_sub(1)
+        }
+        fn run(&self, t: u32) {
+            // SAFETY: as `Boxes`.
+            unsafe { build::hierarchy(t, &self.params, self.sorted_codes.host(), &mut self.nodes2.host_store()) }
+        }
+    }
+
+    /// The inner nodes' boxes (`build::bounds`).
+    pub struct Bounds<'a> {
+        /// Triangles.
+        pub params: LbvhParams,
+        /// The inner nodes.
+        pub nodes2: &'a Buffer<[u32; 4]>,
+        /// The range tree over the sorted boxes.
+        pub tree: &'a Buffer<BuildBox>,
+        /// Written: each inner node's box.
+        pub boxes2: &'a Buffer<BuildBox>,
+    }
+
+    impl Kernel for Bounds<'_> {
+        fn entry(&self) -> Cow<'static, str> {
+            "lbvh_bounds".into()
+        }
+        fn params(&self) -> &[u8] {
+            bytemuck::bytes_of(&self.params)
+        }
+        fn bindings(&self) -> Vec<Bind<'_>> {
+            vec![read("nodes2", self.nodes2), read("tree", self.tree), write("boxes2", self.boxes2)]
+        }
+        fn threads(&self) -> u32 {
+            self.params.count.saturating_sub(1)
+        }
+        fn run(&self, t: u32) {
+            // SAFETY: as `Boxes`.
+            unsafe { build::bounds(t, &self.params, self.nodes2.host(), self.tree.host(), &mut self.boxes2.host_store()) }
+        }
+    }
+
+    /// The next level's items and indirect workgroup counts (`build::level`; one item).
+    pub struct Level<'a> {
+        /// The build's state words.
+        pub state: &'a Buffer<u32>,
+        /// Written: element 0, the collapse's workgroup counts.
+        pub args: &'a Buffer<[u32; 3]>,
+    }
+
+    impl Kernel for Level<'_> {
+        fn entry(&self) -> Cow<'static, str> {
+            "lbvh_level".into()
+        }
+        fn params(&self) -> &[u8] {
+            &[]
+        }
+        fn bindings(&self) -> Vec<Bind<'_>> {
+            vec![write("state", self.state), write("args", self.args)]
+        }
+        fn threads(&self) -> u32 {
+            1
+        }
+        fn run(&self, t: u32) {
+            // SAFETY: as `Boxes`; one item.
+            unsafe { build::level(t, &mut self.state.host_store(), &mut self.args.host_store()) }
+        }
+    }
+
+    /// One level of wide nodes (`build::collapse`), dispatched indirectly.
+    pub struct Collapse<'a> {
+        /// Triangles and the level.
+        pub params: LbvhParams,
+        /// The scene's triangles.
+        pub tris: &'a Buffer<Triangle>,
+        /// The triangles in sorted order.
+        pub sorted: &'a Buffer<u32>,
+        /// The inner nodes.
+        pub nodes2: &'a Buffer<[u32; 4]>,
+        /// Their boxes.
+        pub boxes2: &'a Buffer<BuildBox>,
+        /// The range tree (level 0: the sorted triangles' boxes).
+        pub tree: &'a Buffer<BuildBox>,
+        /// The build's state words (added to atomically).
+        pub state: &'a Buffer<u32>,
+        /// Each wide node's binary node (read at the level's, written at their children's).
+        pub pending: &'a Buffer<u32>,
+        /// Written: the wide nodes.
+        pub bvh: &'a Buffer<BvhNode>,
+        /// Written: the leaf triangles.
+        pub bvh_tris: &'a Buffer<Triangle>,
+    }
+
+    impl Kernel for Collapse<'_> {
+        fn entry(&self) -> Cow<'static, str> {
+            "lbvh_collapse".into()
+        }
+        fn params(&self) -> &[u8] {
+            bytemuck::bytes_of(&self.params)
+        }
+        fn bindings(&self) -> Vec<Bind<'_>> {
+            vec![
+                read("tris", self.tris),
+                read("sorted", self.sorted),
+                read("nodes2", self.nodes2),
+                read("boxes2", self.boxes2),
+                read("tree", self.tree),
+                write("state", self.state),
+                write("pending", self.pending),
+                write("bvh", self.bvh),
+                write("bvh_tris", self.bvh_tris),
+            ]
+        }
+        fn threads(&self) -> u32 {
+            // Dispatched indirectly (`Level`).
+            0
+        }
+        fn run(&self, t: u32) {
+            // SAFETY: as `Boxes`; item t writes its own node and the places it took atomically.
+            unsafe {
+                build::collapse(
+                    t,
+                    &self.params,
+                    self.tris.host(),
+                    self.sorted.host(),
+                    self.nodes2.host(),
+                    self.boxes2.host(),
+                    self.tree.host(),
+                    &mut self.state.host_store(),
+                    &mut self.pending.host_store(),
+                    &mut self.bvh.host_store(),
+                    &mut self.bvh_tris.host_store(),
+                )
+            }
+        }
+    }
+}

@@ -44,6 +44,7 @@ pub mod integrator;
 pub mod bvh;
 pub mod kdtree;
 pub mod kernels;
+pub mod lbvh;
 #[cfg(feature = "mpi")]
 pub mod mpi;
 pub mod runtime;

@@ -14,7 +14,7 @@
 //! Work items are numbered over a 2D grid of workgroups so a dispatch can exceed the 65 535-
 //! workgroup limit of one dimension: `item = x + y · (groups_x · WORKGROUP)`.
 //!
-//! Kernel families are cargo features (`trace`, `render`, `sort`, `photon`; all on by default), so a user can
+//! Kernel families are cargo features (`trace`, `render`, `sort`, `photon`, `raster`, `build`; all on by default), so a user can
 //! build a module with only what they need. The crate also builds for the host (as a normal
 //! library), where the entry points are plain functions that unit tests call.
 #![cfg_attr(target_arch = "spirv", no_std)]
@@ -29,6 +29,8 @@ mod sort;
 mod photon;
 #[cfg(feature = "raster")]
 mod raster;
+#[cfg(feature = "build")]
+mod build;
 
 #[cfg(feature = "trace")]
 pub use trace::*;
@@ -40,6 +42,8 @@ pub use sort::*;
 pub use photon::*;
 #[cfg(feature = "raster")]
 pub use raster::*;
+#[cfg(feature = "build")]
+pub use build::*;
 
 use kdray_shared::kernel::{AtomicStore, Store};
 use kdray_shared::parts::Parts;

@@ -283,6 +283,30 @@ pub struct SortParams {
     pub _pad: u32,
 }
 
+/// Push constants of the linear BVH build's kernels (`bvh::build`).
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct LbvhParams {
+    /// Triangles.
+    pub count: u32,
+    /// The range tree's level (`reduce`) or the wide tree's (`collapse`).
+    pub level: u32,
+    /// Bits of the Morton code that the counting sort sorts by (its top ones; at most 30).
+    pub cell_bits: u32,
+    /// The range tree's root entry (the scene's box).
+    pub root: u32,
+}
+
+/// An axis-aligned box of the BVH build (`bvh::build`): 24 bytes.
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct BuildBox {
+    /// Lower corner.
+    pub lo: [f32; 3],
+    /// Upper corner.
+    pub hi: [f32; 3],
+}
+
 /// Push constants of simple per-item kernels (`rng_fill`).
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]

@@ -30,6 +30,7 @@
 //!   ray's `t_min`) by more than the rounding of both distances (`widened`), so a triangle at
 //!   the same `t` with a lower index (the tie rule) is still tested;
 //! * every loop is bounded by the node count; invalid rays (`Ray::is_valid`) are misses.
+pub mod build;
 pub mod packet;
 pub use packet::{packet_or_single, traverse_packet, BVH_PACKET};
 

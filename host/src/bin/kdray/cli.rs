@@ -184,6 +184,20 @@ pub struct BuildArgs {
     /// The exact SAH sweep at every node (Wald & Havran's build; slower, not better).
     #[arg(long)]
     pub exact_sah: bool,
+    /// Who builds the BVH: `host` (binned SAH on the CPU's cores) or `kernels` (the linear BVH
+    /// of `kdray::lbvh` on the render's first device: milliseconds on a GPU, a tree of higher
+    /// SAH cost).
+    #[arg(long, value_enum, default_value_t = BvhBuildArg::Host)]
+    pub bvh_build: BvhBuildArg,
+}
+
+/// `--bvh-build`.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum BvhBuildArg {
+    /// Binned SAH on the host (`kdray::bvh`).
+    Host,
+    /// The linear BVH by the kernels (`kdray::lbvh`) on the device.
+    Kernels,
 }
 
 impl BuildArgs {
@@ -674,7 +688,6 @@ pub fn run(cli: Cli) -> Result<()> {
             let needs_tree = accel.needs_tree() || (integrator == IntegratorArg::Photon && photon_index == IndexArg::Kd);
             let tree = if needs_tree { Some(build_tree(&scene, &opts)?) } else { None };
             let tree = tree.as_ref();
-            let bvh = if accel.needs_bvh() { Some(build_bvh(&scene)?) } else { None };
             let mut cam = scene.camera.to_pod(size, size);
             // The photon integrator traces tiles unless told otherwise (`PhotonOptions::tiles`).
             if ray_order == Some(RayOrderArg::Tiles) {
@@ -758,6 +771,7 @@ pub fn run(cli: Cli) -> Result<()> {
                 Some(g) => vec![g],
                 None => vec![&NATIVE],
             };
+            let bvh = if accel.needs_bvh() { Some(build_bvh(&scene, build.bvh_build, rts[0])?) } else { None };
             // The image, and why it holds fewer passes than asked (every device failed), if
             // it does.
             let reduced = std::cell::Cell::new(false);
@@ -972,12 +986,20 @@ fn render_accel(traversal: Option<&str>, packets: bool, pipeline: PipelineArg, l
     }
 }
 
-/// Builds the compressed wide BVH and prints what it cost.
-pub fn build_bvh(scene: &scene::Scene) -> Result<kdray::bvh::BvhData> {
+/// Builds the compressed wide BVH (on the host, or by the kernels on `rt`) and prints what it
+/// cost.
+pub fn build_bvh(scene: &scene::Scene, how: BvhBuildArg, rt: &dyn Runtime) -> Result<kdray::bvh::BvhData> {
     let start = Instant::now();
-    let b = kdray::bvh::try_build(&scene.triangles)?;
+    let (b, by) = match how {
+        BvhBuildArg::Host => (kdray::bvh::try_build(&scene.triangles)?, "the host's binned SAH".to_string()),
+        BvhBuildArg::Kernels => {
+            let l = kdray::lbvh::build_on(rt, &scene.triangles)?;
+            let by = format!("the kernels' linear build on {} ({:.1} ms of it on the device)", rt.name(), l.build_s * 1e3);
+            (l.bvh, by)
+        }
+    };
     println!(
-        "BVH: {} nodes of 8, {} leaves, depth {}, SAH cost {:.1}, {:.2} MiB, built in {:.3} s",
+        "BVH: {} nodes of 8, {} leaves, depth {}, SAH cost {:.1}, {:.2} MiB, built in {:.3} s by {by}",
         b.nodes.len(),
         b.leaves,
         b.depth,

@@ -584,6 +584,9 @@ fn build(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
         "oracle mismatch",
         "BVH s per M",
         "BVH SAH cost",
+        "kernels' BVH ms",
+        "kernels' BVH SAH cost",
+        "primary ray visits: BVH / kernels' BVH",
     ]
     .map(String::from)
     .to_vec();
@@ -607,6 +610,21 @@ fn build(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
         let set = bed.ray_set("primary", rays::primary(scene, 64), true)?;
         let got = answers(&bed.cpu, Accel::kd(Algorithm::Stack), &set.sample, true)?;
         let per_m = per_million(s.build_seconds);
+        // The kernels' linear BVH on the suite's device: the fastest of the repetitions (from
+        // submitting its passes to their end), its SAH cost, and node visits plus triangle
+        // tests per primary ray (64², natively) of both BVHs.
+        let rt: &dyn kdray::runtime::Runtime = match o.gpu {
+            Some(g) => g,
+            None => &kdray::runtime::cpu::NATIVE,
+        };
+        let mut lbvh = kdray::lbvh::build_on(rt, &scene.triangles)?;
+        for _ in 1..o.reps.max(3) {
+            let again = kdray::lbvh::build_on(rt, &scene.triangles)?;
+            if again.build_s < lbvh.build_s {
+                lbvh = again;
+            }
+        }
+        let visits = |b: &kdray::bvh::BvhData| kdray::analysis::bvh_counts(b, &set.sample, true, false).iter().map(|c| (c.nodes + c.tris) as f64).sum::<f64>();
         cells.push(vec![
             scene.name.clone(),
             scene.triangles.len().to_string(),
@@ -626,6 +644,9 @@ fn build(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
             format!("{:.1e}", mismatch(&got, &set.oracle)),
             format!("{:.2}", per_million(bvh_seconds)),
             format!("{:.1}", bvh.sah_cost),
+            format!("{:.2}", lbvh.build_s * 1e3),
+            format!("{:.1}", lbvh.bvh.sah_cost),
+            format!("{:.2}", visits(&bvh) / visits(&lbvh.bvh).max(1.0)),
         ]);
         bars.push((scene.name.clone(), per_m, per_million(bvh_seconds)));
         o.progress.inc(1);
@@ -635,7 +656,8 @@ fn build(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
         Some(m) => format!("binned SAH ({} planes per axis) above {m} triangles, the exact sweep below", kdtree::BINS - 1),
         None => "the exact sweep everywhere".into(),
     };
-    write_cells(&o.out, &name, &format!("kd-tree build (SAH: {how}; and the BVH's)"), &device_line(None), "", &header, &cells)?;
+    let kernels_on = o.gpu.map(|g| device_line(Some(g))).unwrap_or_else(|| device_line(None));
+    write_cells(&o.out, &name, &format!("kd-tree build (SAH: {how}; and the BVH's: the host's binned SAH build, and the kernels' linear BVH on {kernels_on})"), &device_line(None), "", &header, &cells)?;
     let mut files = vec![o.out.join(format!("{name}.csv")), o.out.join(format!("{name}.md"))];
     plot(o, &mut files, "build", |p| {
         bar_chart(p, &BarChart { title: format!("build time per million triangles ({})", super::machine()), y_label: "s per 10^6 triangles".into(), categories: bars.iter().map(|b| b.0.clone()).collect(), series: vec![("kd-tree".into(), bars.iter().map(|b| b.1).collect()), ("BVH".into(), bars.iter().map(|b| b.2).collect())], stacked: false })

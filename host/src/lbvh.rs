@@ -1,0 +1,237 @@
+//! The linear BVH build on either runtime (`kdray_shared::bvh::build`): Morton codes, the
+//! counting sort by their top bits (`crate::sort`), the order within small cells by the full
+//! codes, Karras's binary tree, its boxes from a range tree, and the collapse to the compressed
+//! wide BVH level by level, all as kernels, so a GPU builds the tree that its trace kernels
+//! (and the native ones) traverse. The host only uploads the triangles, records the passes
+//! and reads the tree back (`BvhData`, as `crate::bvh::try_build` returns it).
+//!
+//! Quality: Morton order instead of the SAH, so more node visits per ray than the host's
+//! binned SAH build; `LbvhData::sah_cost` reports the binary tree's SAH cost as
+//! `BvhData::sah_cost` does the host's.
+use crate::bvh::BvhData;
+use crate::error::{bail, Result};
+use crate::kernels::lbvh::{Bounds, Boxes, Collapse, Hierarchy, Level, Morton, Reduce, Refine};
+use crate::runtime::{cast, Buffer, Commands, Runtime};
+use crate::sort::CountingSort;
+use kdray_shared::bvh::build::{self, range_level, range_tree_len, LEAF_BIT, STATE_WORDS};
+use kdray_shared::bvh::{BvhNode, MAX_BVH_DEPTH, MAX_LEAF_TRIS};
+use kdray_shared::{BuildBox, LbvhParams, Triangle};
+use std::time::Instant;
+
+/// Triangles the build takes at most (Karras's search keeps positions below 2^29).
+pub const MAX_TRIANGLES: usize = 1 << 29;
+
+/// Bits of the Morton code the counting sort sorts by for `n` triangles: a multiple of three
+/// (whole levels of the octree), about 64 n cells (a mesh fills few of them), from 12 to 24
+/// (16.7 M cells).
+pub fn cell_bits(n: usize) -> u32 {
+    let log = usize::BITS - n.max(2).next_power_of_two().leading_zeros() - 1;
+    (((log + 6).div_ceil(3)) * 3).clamp(12, 24)
+}
+
+/// A BVH built by the kernels, with where the time went.
+#[derive(Clone, Debug)]
+pub struct LbvhData {
+    /// The tree, as the host's builder returns it (`sah_cost`: the binary tree's, below).
+    pub bvh: BvhData,
+    /// Seconds from submitting the build's passes to their end (the build itself, on the
+    /// device; the triangles already there).
+    pub build_s: f64,
+    /// Seconds to upload the triangles and allocate the working buffers.
+    pub setup_s: f64,
+    /// Seconds to read the tree back.
+    pub read_s: f64,
+}
+
+/// The working buffers of one build.
+struct Work<'r> {
+    tris: Buffer<Triangle>,
+    list: Buffer<BuildBox>,
+    tree: Buffer<BuildBox>,
+    codes: Buffer<[u32; 2]>,
+    keys: Buffer<u32>,
+    order: Buffer<u32>,
+    sort: CountingSort<'r>,
+    sorted: Buffer<u32>,
+    sorted_codes: Buffer<[u32; 2]>,
+    nodes2: Buffer<[u32; 4]>,
+    boxes2: Buffer<BuildBox>,
+    state: Buffer<u32>,
+    args: Buffer<[u32; 3]>,
+    pending: Buffer<u32>,
+    bvh: Buffer<BvhNode>,
+    bvh_tris: Buffer<Triangle>,
+}
+
+/// Records the range tree's levels above level 0.
+fn record_reduce(rt: &dyn Runtime, c: &mut Commands, n: u32, tree: &Buffer<BuildBox>) -> Result<()> {
+    for level in 1..=range_levels(n) {
+        let (_, size) = range_level(n, level);
+        rt.dispatch(c, &Reduce { params: LbvhParams { count: n, level, cell_bits: 0, root: 0 }, threads: size, tree })?;
+    }
+    Ok(())
+}
+
+/// Builds the compressed wide BVH over `tris` with the kernels on `rt`. Fails on a vertex that
+/// is not finite, more than `MAX_TRIANGLES` triangles, a tree deeper than `MAX_BVH_DEPTH`
+/// levels or a box too large to quantise (`crate::bvh::try_build` builds those it can), or
+/// buffers larger than the device allows.
+pub fn build_on(rt: &dyn Runtime, tris: &[Triangle]) -> Result<LbvhData> {
+    let n = tris.len();
+    if n > MAX_TRIANGLES {
+        bail!(TooLarge: "{n} triangles: the kernels' BVH build takes at most 2^29");
+    }
+    if let Some(i) = tris.iter().position(|t| [t.v0, t.v1, t.v2].iter().flatten().any(|c| !c.is_finite())) {
+        bail!(InvalidInput: "triangle {i} has a vertex that is not a finite number");
+    }
+    if n == 0 {
+        let bvh = crate::bvh::try_build(tris)?;
+        return Ok(LbvhData { bvh, build_s: 0.0, setup_s: 0.0, read_s: 0.0 });
+    }
+    let t0 = Instant::now();
+    let nu = n as u32;
+    let bits = cell_bits(n);
+    let inner = (n - 1).max(1);
+    let w = Work {
+        tris: rt.upload("BVH build triangles", tris)?,
+        list: rt.alloc("BVH build boxes", n)?,
+        tree: rt.alloc("BVH build range tree", range_tree_len(nu) as usize)?,
+        codes: rt.alloc("BVH build codes", n)?,
+        keys: rt.alloc("BVH build keys", n)?,
+        order: rt.alloc("BVH build order", n)?,
+        sort: CountingSort::new(rt, 1 << bits, nu)?,
+        sorted: rt.alloc("BVH build sorted", n)?,
+        sorted_codes: rt.alloc("BVH build sorted codes", n)?,
+        nodes2: rt.alloc("BVH build binary nodes", inner)?,
+        boxes2: rt.alloc("BVH build binary boxes", inner)?,
+        state: rt.alloc("BVH build state", STATE_WORDS)?,
+        args: rt.alloc("BVH build dispatch", 1)?,
+        // Every wide node but the root stands for a distinct inner node of more than
+        // MAX_LEAF_TRIS triangles: fewer than n.
+        pending: rt.alloc("BVH build pending", n)?,
+        bvh: rt.alloc("BVH nodes", n)?,
+        bvh_tris: rt.alloc("BVH triangles", n)?,
+    };
+    let mut state = [0u32; STATE_WORDS];
+    state[build::STATE_NODES] = 1;
+    rt.write(&w.state, &state)?;
+    // The root: inner node 0, or the one triangle.
+    rt.write(&w.pending, &[if n == 1 { LEAF_BIT } else { 0 }])?;
+    rt.finish()?;
+    let setup_s = t0.elapsed().as_secs_f64();
+
+    let t1 = Instant::now();
+    let mut c = rt.begin();
+    let (top, _) = range_level(nu, range_levels(nu));
+    let p = LbvhParams { count: nu, level: 0, cell_bits: bits, root: top };
+    rt.dispatch(&mut c, &Boxes { params: p, tris: &w.tris, list: &w.list, tree: &w.tree })?;
+    record_reduce(rt, &mut c, nu, &w.tree)?;
+    rt.dispatch(&mut c, &Morton { params: p, list: &w.list, tree: &w.tree, codes: &w.codes, keys: &w.keys })?;
+    w.sort.record(&mut c, &w.keys, nu, &w.order)?;
+    rt.dispatch(
+        &mut c,
+        &Refine { params: p, order: &w.order, offsets: &w.sort.offsets, codes: &w.codes, list: &w.list, sorted: &w.sorted, sorted_codes: &w.sorted_codes, tree: &w.tree },
+    )?;
+    record_reduce(rt, &mut c, nu, &w.tree)?;
+    if n > 1 {
+        rt.dispatch(&mut c, &Hierarchy { params: p, sorted_codes: &w.sorted_codes, nodes2: &w.nodes2 })?;
+        rt.dispatch(&mut c, &Bounds { params: p, nodes2: &w.nodes2, tree: &w.tree, boxes2: &w.boxes2 })?;
+    }
+    for level in 0..MAX_BVH_DEPTH as u32 {
+        rt.dispatch(&mut c, &Level { state: &w.state, args: &w.args })?;
+        let k = Collapse {
+            params: LbvhParams { level, ..p },
+            tris: &w.tris,
+            sorted: &w.sorted,
+            nodes2: &w.nodes2,
+            boxes2: &w.boxes2,
+            tree: &w.tree,
+            state: &w.state,
+            pending: &w.pending,
+            bvh: &w.bvh,
+            bvh_tris: &w.bvh_tris,
+        };
+        rt.dispatch_indirect(&mut c, &k, &w.args, 0)?;
+    }
+    let ps = rt.read_back_of(&mut c, &w.state, STATE_WORDS)?;
+    rt.submit(c)?;
+    let st: Vec<u32> = cast(rt.wait(ps)?);
+    let build_s = t1.elapsed().as_secs_f64();
+    let err = st[build::STATE_ERROR];
+    if err != 0 {
+        if err & 0xff != 0 {
+            bail!(TooLarge: "the kernels' BVH build made a tree deeper than {MAX_BVH_DEPTH} levels (the host's builder balances such scenes)");
+        }
+        if err & 0xff00 != 0 {
+            bail!(TooLarge: "a BVH node of the kernels' build is too large to quantise");
+        }
+        bail!(TooLarge: "the kernels' BVH build made more nodes than it allocated");
+    }
+    let (count, placed) = (st[build::STATE_NODES] as usize, st[build::STATE_TRIS] as usize);
+    if placed != n || count > n {
+        bail!(InvalidInput: "the kernels' BVH build placed {placed} of {n} triangles in {count} nodes");
+    }
+
+    let t2 = Instant::now();
+    let mut c = rt.begin();
+    let pn = rt.read_back_of(&mut c, &w.bvh, count)?;
+    let pt = rt.read_back_of(&mut c, &w.bvh_tris, n)?;
+    let p2 = rt.read_back_of(&mut c, &w.nodes2, inner)?;
+    let pb = rt.read_back_of(&mut c, &w.boxes2, inner)?;
+    let pl = rt.read_back_of(&mut c, &w.tree, n)?;
+    rt.submit(c)?;
+    let nodes: Vec<BvhNode> = cast(rt.wait(pn)?);
+    let out_tris: Vec<Triangle> = cast(rt.wait(pt)?);
+    let read_s = t2.elapsed().as_secs_f64();
+    let nodes2: Vec<[u32; 4]> = cast(rt.wait(p2)?);
+    let boxes2: Vec<BuildBox> = cast(rt.wait(pb)?);
+    let leaf_boxes: Vec<BuildBox> = cast(rt.wait(pl)?);
+    let sah_cost = binary_sah(n, &nodes2, &boxes2, &leaf_boxes);
+    let bvh = BvhData { nodes, tris: out_tris, depth: st[build::STATE_DEPTH] as usize, leaves: st[build::STATE_LEAVES] as usize, sah_cost };
+    Ok(LbvhData { bvh, build_s, setup_s, read_s })
+}
+
+/// Levels of the range tree over `n` boxes above level 0.
+fn range_levels(n: u32) -> u32 {
+    let (mut size, mut levels) = (n, 0);
+    while size > 1 {
+        size = size.div_ceil(2);
+        levels += 1;
+    }
+    levels
+}
+
+/// The SAH cost of the binary tree as the collapse reads it (inner nodes of more than
+/// `MAX_LEAF_TRIS` triangles cost 1 a visit, the others are leaves costing their triangles),
+/// relative to the root's area, in `f64` as `crate::bvh` reports the host's.
+fn binary_sah(n: usize, nodes2: &[[u32; 4]], boxes2: &[BuildBox], leaf_boxes: &[BuildBox]) -> f64 {
+    let area = |b: &BuildBox| {
+        let d = [(b.hi[0] - b.lo[0]) as f64, (b.hi[1] - b.lo[1]) as f64, (b.hi[2] - b.lo[2]) as f64];
+        2.0 * (d[0] * d[1] + d[1] * d[2] + d[2] * d[0])
+    };
+    let of = |r: u32| -> (usize, BuildBox) {
+        if r & LEAF_BIT != 0 {
+            (1, leaf_boxes[(r & !LEAF_BIT) as usize])
+        } else {
+            let nd = nodes2[r as usize];
+            ((nd[3] - nd[2] + 1) as usize, boxes2[r as usize])
+        }
+    };
+    if n < 2 {
+        return n as f64;
+    }
+    let root = area(&boxes2[0]).max(f64::MIN_POSITIVE);
+    let mut cost = 0.0;
+    let mut stack = vec![0u32];
+    while let Some(r) = stack.pop() {
+        let (s, b) = of(r);
+        if s <= MAX_LEAF_TRIS {
+            cost += area(&b) * s as f64;
+        } else {
+            cost += area(&b);
+            let nd = nodes2[r as usize];
+            stack.extend([nd[0], nd[1]]);
+        }
+    }
+    cost / root
+}

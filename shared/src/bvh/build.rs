@@ -1,0 +1,836 @@
+//! Building the compressed wide BVH, once for both sides.
+//!
+//! **The wide node's encoding** (`assign_slots`, `quantise_axis`, `encode_node`): children to
+//! slots by octant and their boxes onto each node's grid, the rules of the module above. The
+//! host's SAH builder (`kdray::bvh`) and the build below encode every node with these.
+//!
+//! **The linear BVH build** (Karras 2012, "Maximizing parallelism in the construction of BVHs,
+//! octrees, and k-d trees"), as per-item kernels that run on the GPU and natively alike:
+//!
+//! 1. `boxes`: each triangle's box, twice (the list in scene order and level 0 of a range tree);
+//!    `reduce`, per level, the union of pairs of the level below (the root: the scene's box).
+//! 2. `morton`: each triangle's 60-bit Morton code (its box's centre on a grid of cubic cells
+//!    over the scene's box, then within its cell: `morton_code`) and its top `LbvhParams::cell_bits` bits as a counting-sort key (the host
+//!    sorts by it with `kdray::sort`, exact offsets); `refine`: within every cell of at most
+//!    `REFINE` triangles each takes its rank by (code, triangle index), so the order is that of
+//!    the full codes, deterministic on every device; a larger cell keeps the sort's order, its triangles
+//!    reduced to the cell's code (codes in order, as the tree needs; equal ones split by
+//!    position). It fills level 0 of the range tree again, in sorted order, and the levels
+//!    above are reduced again.
+//! 3. `hierarchy`: inner node i of the n − 1 of Karras's binary tree, its range of sorted
+//!    triangles and its two children (codes that tie are told apart by position); `bounds`: each
+//!    inner node's box, from the range tree (at most two entries per level).
+//! 4. `collapse`, one dispatch per level of the wide tree (indirect: `level` turns the nodes
+//!    the last level made into the next one's items): a wide node takes its binary node's two
+//!    children and, until it has eight, replaces the inner child of largest area by its two;
+//!    a child of at most `MAX_LEAF_TRIS` triangles is a leaf (its triangles are consecutive in
+//!    sorted order). It takes its child nodes' and leaf triangles' places by atomic additions
+//!    (so the layout depends on the order they happen in; the tree does not), copies its leaf
+//!    triangles, and encodes itself. Levels past `MAX_BVH_DEPTH`, a box too large to quantise
+//!    or more nodes than allocated set `STATE_ERROR`.
+use super::{BvhNode, BVH_WIDTH, MAX_BVH_DEPTH, MAX_LEAF_TRIS};
+use crate::kernel::{AtomicStore, Store};
+use crate::math::exp2i;
+use crate::pod::{BuildBox, LbvhParams, Triangle};
+use glam::UVec4;
+
+/// Meta byte of a slot whose child is node `s`'s: `0b001_00000 | (24 + s)`.
+#[inline(always)]
+pub fn node_meta(slot: u32) -> u32 {
+    0b001_00000 | (24 + slot)
+}
+
+/// Meta byte of a leaf of `count` (1..=3) triangles starting `offset` after the node's first.
+#[inline(always)]
+pub fn leaf_meta(count: u32, offset: u32) -> u32 {
+    (((1u32 << count) - 1) << 5) | offset
+}
+
+/// No child in this slot (`assign_slots`).
+pub const NO_CHILD: u32 = u32::MAX;
+
+/// `f32` bits as an unsigned key in the order of `f32::total_cmp`.
+#[inline(always)]
+fn ordered(x: f32) -> u32 {
+    let b = x.to_bits();
+    if b >> 31 != 0 {
+        !b
+    } else {
+        b | 1 << 31
+    }
+}
+
+/// Which child goes to which slot: the child lying first along octant o's diagonal (the
+/// smallest projection of its centre minus the parent's on it, summed from −0 over x, y, z) to
+/// slot o, greedily over all (cost, child, slot) triples in increasing order (cost by
+/// `f32::total_cmp`; ties: lower child, then lower slot). Slot
+/// s holds child `slots[s]` or `NO_CHILD`. `n` ≤ `BVH_WIDTH` children.
+#[inline(always)]
+pub fn assign_slots(parent: [f32; 3], centres: &[[f32; 3]; BVH_WIDTH], n: usize) -> [u32; BVH_WIDTH] {
+    let mut slots = [NO_CHILD; BVH_WIDTH];
+    let mut placed = 0u32;
+    let mut round = 0;
+    while round < n {
+        // The smallest (cost, child, slot) among free children and free slots.
+        let mut best = (u32::MAX, u32::MAX, u32::MAX);
+        let mut i = 0;
+        while i < n {
+            if placed >> i & 1 == 0 {
+                let c = centres[i];
+                let mut s = 0;
+                while s < BVH_WIDTH {
+                    if slots[s] == NO_CHILD {
+                        let sign = |bit: usize| if s & bit != 0 { -1.0f32 } else { 1.0 };
+                        let mut cost = -0.0f32;
+                        cost += (c[0] - parent[0]) * sign(4);
+                        cost += (c[1] - parent[1]) * sign(2);
+                        cost += (c[2] - parent[2]) * sign(1);
+                        // (cost, child, slot) in lexicographic order, compared by hand (no
+                        // `Ordering`, an 8-bit type, in the shader build).
+                        let key = (ordered(cost), i as u32, s as u32);
+                        if key.0 < best.0 || (key.0 == best.0 && (key.1 < best.1 || (key.1 == best.1 && key.2 < best.2))) {
+                            best = key;
+                        }
+                    }
+                    s += 1;
+                }
+            }
+            i += 1;
+        }
+        slots[best.2 as usize] = best.1;
+        placed |= 1 << best.1;
+        round += 1;
+    }
+    slots
+}
+
+/// `floor(log2 x)` of a positive finite `x` (subnormals: −127).
+#[inline(always)]
+fn ilog2(x: f32) -> i32 {
+    ((x.to_bits() >> 23) & 0xff) as i32 - 127
+}
+
+/// `floor(x)` as `i32` for |x| < 2^31.
+#[inline(always)]
+fn floor_i32(x: f32) -> i32 {
+    let t = x as i32;
+    if (t as f32) > x {
+        t - 1
+    } else {
+        t
+    }
+}
+
+/// One axis of a node's grid (`quantise_axis`): the step's exponent, the origin, and each
+/// child's lower and upper grid coordinates (in the children's order).
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct AxisGrid {
+    /// The step is 2^`exp`.
+    pub exp: i32,
+    /// The grid's origin.
+    pub origin: f32,
+    /// Lower and upper coordinates of child j: `origin + 2^exp · q` below and above its box.
+    pub q: [[u32; 2]; BVH_WIDTH],
+}
+
+/// The grid of one axis of a node spanning [`lo`, `hi`] over its `n` children's extents
+/// `kids` along it: the smallest power-of-two step 2^e (e from −100 to 119) for which there is
+/// an origin, `lo` rounded down to a multiple of 2^f (f the finest power of two, at most the
+/// step, whose multiples below 2^(f + 24) in magnitude hold every `origin + q · step`, q =
+/// 0..=256: so every grid value is exact in `f32`), on which every child's extent rounds
+/// outwards into 0..=255 with finite coordinates. `None` when no step up to 2^119 does.
+///
+/// All in `f32` and integers, and exact: the step's first guess may be one too small (that
+/// step then fails, as `hi` lies more than 255 of them above `lo`), never too large; f is
+/// computed exactly, and
+/// each coordinate is the floor (ceiling) of the exact quotient, checked on the grid as the
+/// kernels reconstruct it.
+pub fn quantise_axis(lo: f32, hi: f32, kids: &[(f32, f32); BVH_WIDTH], n: usize) -> Option<AxisGrid> {
+    // The smallest e with 255 · 2^e ≥ hi − lo (halved so it cannot overflow) or one less: the
+    // rounded quotient never exceeds 2^e when the exact one does not (255 · 2^e and 2^e are
+    // f32 values and rounding is monotonic), though it may fall to 2^e from just above.
+    let x = (0.5 * hi - 0.5 * lo) / 127.5;
+    let mut e = if x > 0.0 { ilog2(x) + if x.to_bits() & 0x7f_ffff != 0 { 1 } else { 0 } } else { -100 };
+    let max_abs = if lo.abs() > hi.abs() { lo.abs() } else { hi.abs() };
+    if max_abs > 0.0 {
+        // Every grid value must be an f32 multiple of a power of two no coarser than the step.
+        let m = ilog2(max_abs) + 1 - 23;
+        if m > e {
+            e = m;
+        }
+    }
+    if e < -100 {
+        e = -100;
+    }
+    let a = lo.abs();
+    while e <= 119 {
+        // L = floor(log2(|lo| + 2^(e + 8))), exactly.
+        let big = e + 8;
+        let l = if a == 0.0 || ilog2(a) < big {
+            big
+        } else if ilog2(a) == big {
+            big + 1
+        } else {
+            let la = ilog2(a);
+            // a + 2^big ≥ 2^(la + 1)  ⇔  a − 2^la ≥ 2^la − 2^big (both sides exact in f32
+            // when la − big ≤ 23; past that 2^big is below half an ulp of a).
+            if la - big <= 23 && a - exp2i(la) >= exp2i(la) - exp2i(big) {
+                la + 1
+            } else {
+                la
+            }
+        };
+        let mut f = l - 23;
+        if f > e {
+            f = e;
+        }
+        if f < -100 {
+            f = -100;
+        }
+        let d = e - f;
+        // k = floor(lo / 2^f); a tiny negative quotient may round to −0.
+        let mut k = floor_i32(lo * exp2i(-f));
+        if k == 0 && lo < 0.0 {
+            k = -1;
+        }
+        if d <= 16 && k.unsigned_abs() + (255u32 << d) < 1 << 24 {
+            let origin = k as f32 * exp2i(f);
+            let s = exp2i(e);
+            let inv = exp2i(-e);
+            let at = |q: u32| origin + s * q as f32;
+            let mut q = [[0u32; 2]; BVH_WIDTH];
+            let mut fits = true;
+            let mut j = 0;
+            while j < n {
+                let (cl, ch) = kids[j];
+                let clamp = |v: f32| if v > 256.0 { 256 } else if v > 0.0 { floor_i32(v) as u32 } else { 0 };
+                // The floor of (cl − origin) / step and the ceiling of (ch − origin) / step
+                // (at least 0), from estimates made exact on the grid.
+                let mut ql = clamp((cl - origin) * inv);
+                let mut qh = clamp((ch - origin) * inv);
+                while ql > 0 && at(ql) > cl {
+                    ql -= 1;
+                }
+                while ql < 255 && at(ql + 1) <= cl {
+                    ql += 1;
+                }
+                while qh > 0 && at(qh - 1) >= ch {
+                    qh -= 1;
+                }
+                while qh <= 255 && at(qh) < ch {
+                    qh += 1;
+                }
+                // Every stored coordinate finite too (a box up against f32::MAX may round past it).
+                if qh > 255 || at(ql) > cl || !at(ql).is_finite() || !at(qh).is_finite() {
+                    fits = false;
+                    break;
+                }
+                q[j] = [ql, qh];
+                j += 1;
+            }
+            if fits {
+                return Some(AxisGrid { exp: e, origin, q });
+            }
+        }
+        e += 1;
+    }
+    None
+}
+
+/// A child as `encode_node` takes it: its box and its meta byte (`node_meta`, `leaf_meta`; 0:
+/// no child in this slot).
+#[derive(Copy, Clone, Debug, Default, PartialEq)]
+pub struct SlotChild {
+    /// Lower corner of its box.
+    pub lo: [f32; 3],
+    /// Upper corner.
+    pub hi: [f32; 3],
+    /// Its meta byte.
+    pub meta: u32,
+}
+
+/// Packs eight bytes into two words (byte s of the pair).
+#[inline(always)]
+fn pack(v: &[u32; BVH_WIDTH]) -> [u32; 2] {
+    [v[0] | v[1] << 8 | v[2] << 16 | v[3] << 24, v[4] | v[5] << 8 | v[6] << 16 | v[7] << 24]
+}
+
+/// The node over `slots` (by slot) inside the box [`lo`, `hi`] (their union), its child nodes
+/// from `child_base`, its leaf triangles from `tri_base`. `None` when a box is too large to
+/// quantise (`quantise_axis`).
+pub fn encode_node(lo: [f32; 3], hi: [f32; 3], slots: &[SlotChild; BVH_WIDTH], child_base: u32, tri_base: u32) -> Option<BvhNode> {
+    let mut q = [[0u32; BVH_WIDTH]; 6];
+    let mut origin = [0u32; 3];
+    let mut exps = 0u32;
+    let mut imask = 0u32;
+    let mut meta = [0u32; BVH_WIDTH];
+    let mut s = 0;
+    while s < BVH_WIDTH {
+        meta[s] = slots[s].meta;
+        if super::meta_is_node(slots[s].meta) {
+            imask |= 1 << s;
+        }
+        s += 1;
+    }
+    let mut a = 0;
+    while a < 3 {
+        // The present children in slot order.
+        let mut kids = [(0.0f32, 0.0f32); BVH_WIDTH];
+        let mut which = [0usize; BVH_WIDTH];
+        let mut m = 0;
+        let mut s = 0;
+        while s < BVH_WIDTH {
+            if slots[s].meta != 0 {
+                kids[m] = (slots[s].lo[a], slots[s].hi[a]);
+                which[m] = s;
+                m += 1;
+            }
+            s += 1;
+        }
+        let g = quantise_axis(lo[a], hi[a], &kids, m)?;
+        origin[a] = g.origin.to_bits();
+        exps |= ((g.exp + 127) as u32) << (8 * a);
+        let mut j = 0;
+        while j < m {
+            q[a][which[j]] = g.q[j][0];
+            q[3 + a][which[j]] = g.q[j][1];
+            j += 1;
+        }
+        a += 1;
+    }
+    let [m0, m1] = pack(&meta);
+    let w = [pack(&q[0]), pack(&q[1]), pack(&q[2]), pack(&q[3]), pack(&q[4]), pack(&q[5])];
+    Some(BvhNode {
+        origin_exp: UVec4::new(origin[0], origin[1], origin[2], exps | (imask << 24)),
+        bases_meta: UVec4::new(child_base, tri_base, m0, m1),
+        lo_x_y: UVec4::new(w[0][0], w[0][1], w[1][0], w[1][1]),
+        lo_z_hi_x: UVec4::new(w[2][0], w[2][1], w[3][0], w[3][1]),
+        hi_y_z: UVec4::new(w[4][0], w[4][1], w[5][0], w[5][1]),
+    })
+}
+
+// ---------------------------------------------------------------------------------------------
+// The linear BVH build.
+
+/// Cells of at most this many triangles are ordered by their full codes (`refine`).
+pub const REFINE: u32 = 128;
+/// A reference to a node of the binary tree: inner node i, or (with this bit) sorted triangle i.
+pub const LEAF_BIT: u32 = 1 << 31;
+/// `state` words of the build: wide nodes made so far (the root counted).
+pub const STATE_NODES: usize = 0;
+/// Leaf triangles placed so far.
+pub const STATE_TRIS: usize = 1;
+/// The first wide node of the level being collapsed.
+pub const STATE_LEVEL_START: usize = 2;
+/// One past its last.
+pub const STATE_LEVEL_END: usize = 3;
+/// Leaf children made.
+pub const STATE_LEAVES: usize = 4;
+/// Nonzero when the build failed: `ERROR_DEPTH`, `ERROR_QUANTISE` or `ERROR_NODES` (or'ed in
+/// by addition: any nonzero value is a failure).
+pub const STATE_ERROR: usize = 5;
+/// Levels of the wide tree that made nodes.
+pub const STATE_DEPTH: usize = 6;
+/// Words of `state`.
+pub const STATE_WORDS: usize = 8;
+/// Deeper than `MAX_BVH_DEPTH`.
+pub const ERROR_DEPTH: u32 = 1;
+/// A box too large to quantise.
+pub const ERROR_QUANTISE: u32 = 1 << 8;
+/// More wide nodes than allocated.
+pub const ERROR_NODES: u32 = 1 << 16;
+
+impl BuildBox {
+    /// The empty box (the union's identity).
+    pub const EMPTY: BuildBox = BuildBox { lo: [f32::INFINITY; 3], hi: [f32::NEG_INFINITY; 3] };
+
+    /// The union of two boxes.
+    #[inline(always)]
+    pub fn union(&self, o: &BuildBox) -> BuildBox {
+        let mut b = *self;
+        let mut a = 0;
+        while a < 3 {
+            if o.lo[a] < b.lo[a] {
+                b.lo[a] = o.lo[a];
+            }
+            if o.hi[a] > b.hi[a] {
+                b.hi[a] = o.hi[a];
+            }
+            a += 1;
+        }
+        b
+    }
+
+    /// The box of a triangle.
+    #[inline(always)]
+    pub fn of(t: &Triangle) -> BuildBox {
+        let mut b = BuildBox { lo: t.v0, hi: t.v0 };
+        b = b.union(&BuildBox { lo: t.v1, hi: t.v1 });
+        b.union(&BuildBox { lo: t.v2, hi: t.v2 })
+    }
+
+    /// Its centre.
+    #[inline(always)]
+    pub fn centre(&self) -> [f32; 3] {
+        [0.5 * (self.lo[0] + self.hi[0]), 0.5 * (self.lo[1] + self.hi[1]), 0.5 * (self.lo[2] + self.hi[2])]
+    }
+
+    /// Half its surface area, in a form that orders boxes as their areas (`f32`; overflows to ∞
+    /// only past 10^19).
+    #[inline(always)]
+    pub fn half_area(&self) -> f32 {
+        let d = [self.hi[0] - self.lo[0], self.hi[1] - self.lo[1], self.hi[2] - self.lo[2]];
+        d[0] * d[1] + d[1] * d[2] + d[2] * d[0]
+    }
+}
+
+/// Entries of the range tree over `n` boxes (its levels: n, ⌈n/2⌉, … down to one).
+#[inline(always)]
+pub fn range_tree_len(n: u32) -> u32 {
+    let mut size = n;
+    let mut total = n;
+    while size > 1 {
+        size = size.div_ceil(2);
+        total += size;
+    }
+    total
+}
+
+/// The first entry of `level` of the range tree over `n` boxes, and its size.
+#[inline(always)]
+pub fn range_level(n: u32, level: u32) -> (u32, u32) {
+    let mut off = 0;
+    let mut size = n;
+    let mut k = 0;
+    while k < level && k < 32 {
+        off += size;
+        size = size.div_ceil(2);
+        k += 1;
+    }
+    (off, size)
+}
+
+/// Triangle i's box, into the list (scene order) and level 0 of the range tree.
+#[inline(always)]
+pub fn boxes<S: Store<BuildBox> + ?Sized, T: Store<BuildBox> + ?Sized>(i: u32, p: &LbvhParams, tris: &[Triangle], list: &mut S, tree: &mut T) {
+    if i >= p.count {
+        return;
+    }
+    let b = BuildBox::of(&tris[i as usize]);
+    list.store(i as usize, b);
+    tree.store(i as usize, b);
+}
+
+/// Entry i of range-tree level `p.level` (≥ 1): the union of entries 2i and 2i + 1 of the level
+/// below (the one the dispatch before wrote).
+#[inline(always)]
+pub fn reduce<T: Store<BuildBox> + ?Sized>(i: u32, p: &LbvhParams, tree: &mut T) {
+    let (below, below_size) = range_level(p.count, p.level - 1);
+    let (here, size) = range_level(p.count, p.level);
+    if i >= size {
+        return;
+    }
+    let a = 2 * i;
+    let mut b = tree.load((below + a) as usize);
+    if a + 1 < below_size {
+        b = b.union(&tree.load((below + a + 1) as usize));
+    }
+    tree.store((here + i) as usize, b);
+}
+
+/// The union of sorted boxes `first..=last` from the range tree (at most two entries a level).
+#[inline(always)]
+pub fn range_bounds<T: Store<BuildBox> + ?Sized>(n: u32, tree: &T, first: u32, last: u32) -> BuildBox {
+    let mut acc = BuildBox::EMPTY;
+    let (mut l, mut r) = (first, last + 1);
+    let mut off = 0;
+    let mut size = n;
+    let mut level = 0;
+    while l < r && level < 32 {
+        if l & 1 == 1 {
+            acc = acc.union(&tree.load((off + l) as usize));
+            l += 1;
+        }
+        if r & 1 == 1 {
+            r -= 1;
+            acc = acc.union(&tree.load((off + r) as usize));
+        }
+        l >>= 1;
+        r >>= 1;
+        off += size;
+        size = size.div_ceil(2);
+        level += 1;
+    }
+    acc
+}
+
+/// Spreads the low 10 bits of `v` to every third bit.
+#[inline(always)]
+fn spread(v: u32) -> u32 {
+    let mut x = v & 0x3ff;
+    x = (x | x << 16) & 0x0300_00ff;
+    x = (x | x << 8) & 0x0300_f00f;
+    x = (x | x << 4) & 0x030c_30c3;
+    (x | x << 2) & 0x0924_9249
+}
+
+/// The 60-bit Morton code of point `c` in the box [`lo`, `hi`], as its top and bottom 30 bits:
+/// on a grid of cubic cells (a flat scene's first splits then cut along its long sides, not
+/// across its thin one) whose side is a power of two, 512 to 1024 of them along the box's
+/// longest side, then on 1024³ steps within the cell. Only exact
+/// operations (halving, subtraction, scaling by a power of two), so every device computes the
+/// same codes (a GPU's division need not be correctly rounded).
+#[inline(always)]
+pub fn morton_code(c: [f32; 3], lo: [f32; 3], hi: [f32; 3]) -> [u32; 2] {
+    // Halves, so that no difference overflows.
+    let mut m = 0.0f32;
+    let mut a = 0;
+    while a < 3 {
+        let h = 0.5 * hi[a] - 0.5 * lo[a];
+        if h > m {
+            m = h;
+        }
+        a += 1;
+    }
+    // 2^k with m · 2^k ≤ 1024 (m is half the longest side): k = 10 − ⌈log2 m⌉.
+    let mut k = if m > 0.0 { 10 - (ilog2(m) + if m.to_bits() & 0x7f_ffff != 0 { 1 } else { 0 }) } else { 0 };
+    k = k.clamp(-126, 127);
+    let scale = exp2i(k);
+    let mut q = [0u32; 3];
+    let mut f = [0u32; 3];
+    let mut a = 0;
+    while a < 3 {
+        let u = (0.5 * c[a] - 0.5 * lo[a]) * scale;
+        q[a] = if u >= 1023.0 { 1023 } else if u > 0.0 { u as u32 } else { 0 };
+        // The position within the cell, on 1024 steps (exact: u < 2^10 has 14 bits below 1).
+        let r = (u - q[a] as f32) * 1024.0;
+        f[a] = if r >= 1023.0 { 1023 } else if r > 0.0 { r as u32 } else { 0 };
+        a += 1;
+    }
+    [spread(q[0]) << 2 | spread(q[1]) << 1 | spread(q[2]), spread(f[0]) << 2 | spread(f[1]) << 1 | spread(f[2])]
+}
+
+/// Triangle i's Morton code over the scene's box (the range tree's root, `p.root`) and its
+/// sort key, the code's top `p.cell_bits` bits.
+#[inline(always)]
+pub fn morton<C: Store<[u32; 2]> + ?Sized, S: Store<u32> + ?Sized>(i: u32, p: &LbvhParams, list: &[BuildBox], tree: &[BuildBox], codes: &mut C, keys: &mut S) {
+    if i >= p.count {
+        return;
+    }
+    let root = tree[p.root as usize];
+    let code = morton_code(list[i as usize].centre(), root.lo, root.hi);
+    codes.store(i as usize, code);
+    keys.store(i as usize, code[0] >> (30 - p.cell_bits));
+}
+
+/// Sorted position i: the triangle the counting sort put there (`order`, by cell) moved to its
+/// rank by (code, triangle index) within its cell when the cell holds at most `REFINE`
+/// triangles (its place, and the cell's code, otherwise): `sorted` and `sorted_codes` at that
+/// rank, and its box at that position of level 0 of the range tree.
+#[inline(always)]
+pub fn refine<S: Store<u32> + ?Sized, C: Store<[u32; 2]> + ?Sized, T: Store<BuildBox> + ?Sized>(
+    i: u32,
+    p: &LbvhParams,
+    order: &[u32],
+    offsets: &[u32],
+    codes: &[[u32; 2]],
+    list: &[BuildBox],
+    sorted: &mut S,
+    sorted_codes: &mut C,
+    tree: &mut T,
+) {
+    if i >= p.count {
+        return;
+    }
+    let t = order[i as usize];
+    let code = codes[t as usize];
+    let shift = 30 - p.cell_bits;
+    let cell = (code[0] >> shift) as usize;
+    let (start, end) = (offsets[cell], offsets[cell + 1]);
+    // A larger cell keeps the sort's order and its triangles the cell's code (its top bits):
+    // Karras's tree needs codes in order, and equal codes split by position.
+    let mut rank = i - start;
+    let mut key = [(code[0] >> shift) << shift, 0];
+    if end - start <= REFINE {
+        key = code;
+        rank = 0;
+        let mut j = start;
+        while j < end && j < p.count {
+            let u = order[j as usize];
+            let cu = codes[u as usize];
+            if cu[0] < code[0] || (cu[0] == code[0] && (cu[1] < code[1] || (cu[1] == code[1] && u < t))) {
+                rank += 1;
+            }
+            j += 1;
+        }
+    }
+    let at = (start + rank) as usize;
+    sorted.store(at, t);
+    sorted_codes.store(at, key);
+    tree.store(at, list[t as usize]);
+}
+
+/// The length of the common prefix of the sorted codes at `a` and `b` (a code's two halves of
+/// 30 bits each counted as 32; position tells apart codes that tie: 64 more than their
+/// positions' common prefix); −1 when `b` lies outside 0..n.
+#[inline(always)]
+fn delta(codes: &[[u32; 2]], n: u32, a: u32, b: i32) -> i32 {
+    if b < 0 || b as u32 >= n {
+        return -1;
+    }
+    let b = b as u32;
+    let (ka, kb) = (codes[a as usize], codes[b as usize]);
+    if ka[0] != kb[0] {
+        (ka[0] ^ kb[0]).leading_zeros() as i32
+    } else if ka[1] != kb[1] {
+        32 + (ka[1] ^ kb[1]).leading_zeros() as i32
+    } else {
+        64 + (a ^ b).leading_zeros() as i32
+    }
+}
+
+/// Inner node i (of n − 1; the root is 0) of Karras's tree over the `p.count` sorted codes
+/// (fewer than 2^29): its range `first..=last` of sorted triangles and its children
+/// (`LEAF_BIT` | position for a single triangle) as `[left, right, first, last]`.
+#[inline(always)]
+pub fn hierarchy<S: Store<[u32; 4]> + ?Sized>(i: u32, p: &LbvhParams, codes: &[[u32; 2]], nodes: &mut S) {
+    let n = p.count;
+    if n < 2 || i >= n - 1 {
+        return;
+    }
+    let ii = i as i32;
+    // Direction: towards the neighbour sharing the longer prefix.
+    let d: i32 = if delta(codes, n, i, ii + 1) > delta(codes, n, i, ii - 1) { 1 } else { -1 };
+    let dmin = delta(codes, n, i, ii - d);
+    // An upper bound of the range's length (a power of two, below 2^30), then the length by
+    // binary search.
+    let mut lmax: i32 = 2;
+    while lmax < 1 << 29 && delta(codes, n, i, ii + lmax * d) > dmin {
+        lmax *= 2;
+    }
+    let mut l: i32 = 0;
+    let mut t = lmax / 2;
+    while t >= 1 {
+        if delta(codes, n, i, ii + (l + t) * d) > dmin {
+            l += t;
+        }
+        t /= 2;
+    }
+    let j = ii + l * d;
+    // The split: the last position sharing more than the range's common prefix with i.
+    let dnode = delta(codes, n, i, j);
+    let mut s: i32 = 0;
+    let mut step = l;
+    let mut guard = 0;
+    loop {
+        step = (step + 1) / 2;
+        if delta(codes, n, i, ii + (s + step) * d) > dnode {
+            s += step;
+        }
+        guard += 1;
+        if step <= 1 || guard >= 32 {
+            break;
+        }
+    }
+    let gamma = ii + s * d + if d < 0 { -1 } else { 0 };
+    let (first, last) = if d > 0 { (ii, j) } else { (j, ii) };
+    let left = if first == gamma { gamma as u32 | LEAF_BIT } else { gamma as u32 };
+    let right = if last == gamma + 1 { (gamma + 1) as u32 | LEAF_BIT } else { (gamma + 1) as u32 };
+    nodes.store(i as usize, [left, right, first as u32, last as u32]);
+}
+
+/// Inner node i's box, from the range tree over the sorted boxes.
+#[inline(always)]
+pub fn bounds<S: Store<BuildBox> + ?Sized>(i: u32, p: &LbvhParams, nodes: &[[u32; 4]], tree: &[BuildBox], out: &mut S) {
+    if p.count < 2 || i >= p.count - 1 {
+        return;
+    }
+    let nd = nodes[i as usize];
+    out.store(i as usize, range_bounds(p.count, tree, nd[2], nd[3]));
+}
+
+/// The level pass (one item): the nodes made since the last level become the next level's
+/// items (`state`'s level start and end), and the indirect dispatch's workgroup counts.
+#[inline(always)]
+pub fn level<S: Store<u32> + ?Sized, A: Store<[u32; 3]> + ?Sized>(i: u32, state: &mut S, args: &mut A) {
+    if i != 0 {
+        return;
+    }
+    let start = state.load(STATE_LEVEL_END);
+    let end = state.load(STATE_NODES);
+    state.store(STATE_LEVEL_START, start);
+    state.store(STATE_LEVEL_END, end);
+    if end > start {
+        state.store(STATE_DEPTH, state.load(STATE_DEPTH) + 1);
+    }
+    args.store(0, crate::kernel::dispatch_args(end - start));
+}
+
+/// The binary tree as `collapse` reads it.
+struct Binary<'a> {
+    nodes: &'a [[u32; 4]],
+    boxes: &'a [BuildBox],
+    tree: &'a [BuildBox],
+}
+
+impl Binary<'_> {
+    /// Triangles under `r`.
+    #[inline(always)]
+    fn size(&self, r: u32) -> u32 {
+        if r & LEAF_BIT != 0 {
+            1
+        } else {
+            let nd = self.nodes[r as usize];
+            nd[3] - nd[2] + 1
+        }
+    }
+    /// The first sorted triangle under `r`.
+    #[inline(always)]
+    fn first(&self, r: u32) -> u32 {
+        if r & LEAF_BIT != 0 {
+            r & !LEAF_BIT
+        } else {
+            self.nodes[r as usize][2]
+        }
+    }
+    /// Its box.
+    #[inline(always)]
+    fn bounds(&self, r: u32) -> BuildBox {
+        if r & LEAF_BIT != 0 {
+            self.tree[(r & !LEAF_BIT) as usize]
+        } else {
+            self.boxes[r as usize]
+        }
+    }
+}
+
+/// Wide node `state[STATE_LEVEL_START] + i` of level `p.level` (its binary node in `pending`):
+/// see the module. Its child nodes' binary nodes go to `pending` at their places.
+#[inline(always)]
+pub fn collapse<S: AtomicStore + Store<u32> + ?Sized, P: Store<u32> + ?Sized, N: Store<BvhNode> + ?Sized, T: Store<Triangle> + ?Sized>(
+    i: u32,
+    p: &LbvhParams,
+    tris: &[Triangle],
+    sorted: &[u32],
+    nodes2: &[[u32; 4]],
+    boxes2: &[BuildBox],
+    tree: &[BuildBox],
+    state: &mut S,
+    pending: &mut P,
+    out_nodes: &mut N,
+    out_tris: &mut T,
+) {
+    let start = state.load(STATE_LEVEL_START);
+    let end = state.load(STATE_LEVEL_END);
+    if i >= end - start {
+        return;
+    }
+    let w = start + i;
+    let bin = Binary { nodes: nodes2, boxes: boxes2, tree };
+    let b = pending.load(w as usize);
+    let parent = bin.bounds(b);
+    // The children: the binary node's two, then the inner child of largest area replaced by its
+    // two until there are eight (a node of at most MAX_LEAF_TRIS triangles is a leaf).
+    let mut kids = [b; BVH_WIDTH];
+    let mut n = 1;
+    if bin.size(b) > MAX_LEAF_TRIS as u32 {
+        let nd = nodes2[b as usize];
+        kids[0] = nd[0];
+        kids[1] = nd[1];
+        n = 2;
+        while n < BVH_WIDTH {
+            let mut pick = BVH_WIDTH;
+            let mut best = 0.0f32;
+            let mut k = 0;
+            while k < n {
+                if bin.size(kids[k]) > MAX_LEAF_TRIS as u32 {
+                    let a = bin.bounds(kids[k]).half_area();
+                    if pick == BVH_WIDTH || a >= best {
+                        pick = k;
+                        best = a;
+                    }
+                }
+                k += 1;
+            }
+            if pick == BVH_WIDTH {
+                break;
+            }
+            let nd = nodes2[kids[pick] as usize];
+            kids[pick] = kids[n - 1];
+            kids[n - 1] = nd[0];
+            kids[n] = nd[1];
+            n += 1;
+        }
+    }
+    let mut centres = [[0.0f32; 3]; BVH_WIDTH];
+    let mut k = 0;
+    while k < n {
+        centres[k] = bin.bounds(kids[k]).centre();
+        k += 1;
+    }
+    let slots = assign_slots(parent.centre(), &centres, n);
+    // Places: child nodes and leaf triangles in slot order.
+    let (mut inner, mut leaf_tris) = (0u32, 0u32);
+    let mut s = 0;
+    while s < BVH_WIDTH {
+        if slots[s] != NO_CHILD {
+            let size = bin.size(kids[slots[s] as usize]);
+            if size > MAX_LEAF_TRIS as u32 {
+                inner += 1;
+            } else {
+                leaf_tris += size;
+            }
+        }
+        s += 1;
+    }
+    if inner > 0 && p.level + 1 >= MAX_BVH_DEPTH as u32 {
+        state.atomic_add(STATE_ERROR, ERROR_DEPTH);
+        return;
+    }
+    let child_base = if inner > 0 { state.atomic_add_shared(STATE_NODES, inner) } else { 0 };
+    if child_base + inner > out_nodes.len() as u32 || child_base + inner > pending.len() as u32 {
+        state.atomic_add(STATE_ERROR, ERROR_NODES);
+        return;
+    }
+    let tri_base = if leaf_tris > 0 { state.atomic_add_shared(STATE_TRIS, leaf_tris) } else { 0 };
+    let mut out = [SlotChild::default(); BVH_WIDTH];
+    let (mut next_node, mut next_tri, mut leaves) = (0u32, 0u32, 0u32);
+    let mut s = 0;
+    while s < BVH_WIDTH {
+        if slots[s] != NO_CHILD {
+            let r = kids[slots[s] as usize];
+            let bb = bin.bounds(r);
+            let size = bin.size(r);
+            out[s].lo = bb.lo;
+            out[s].hi = bb.hi;
+            if size > MAX_LEAF_TRIS as u32 {
+                out[s].meta = node_meta(s as u32);
+                pending.store((child_base + next_node) as usize, r);
+                next_node += 1;
+            } else {
+                out[s].meta = leaf_meta(size, next_tri);
+                let first = bin.first(r);
+                let mut j = 0;
+                while j < size {
+                    let scene = sorted[(first + j) as usize];
+                    let mut t = tris[scene as usize];
+                    t._pad = scene;
+                    out_tris.store((tri_base + next_tri) as usize, t);
+                    next_tri += 1;
+                    j += 1;
+                }
+                leaves += 1;
+            }
+        }
+        s += 1;
+    }
+    if leaves > 0 {
+        state.atomic_add(STATE_LEAVES, leaves);
+    }
+    match encode_node(parent.lo, parent.hi, &out, child_base, tri_base) {
+        Some(node) => out_nodes.store(w as usize, node),
+        None => {
+            state.atomic_add(STATE_ERROR, ERROR_QUANTISE);
+        }
+    }
+}
