@@ -587,6 +587,8 @@ mod tests {
     /// thin and wide, with children anywhere inside, at powers of two and next to them.
     #[test]
     fn the_shared_grid_rule_is_the_f64_rule() {
+        // Compared bit for bit (an origin of −0 is not one of +0).
+        let bits = |g: Option<(i32, f32, [(u32, u32); BVH_WIDTH])>| g.map(|(e, o, q)| (e, o.to_bits(), q));
         let mut rng = kdray_shared::rng::Rng::new(11, 0);
         let mut next = move || rng.next_u32();
         let (mut some, mut none) = (0, 0);
@@ -627,7 +629,7 @@ mod tests {
             }
             let got = quantise_axis(lo, hi, &kids[..n]);
             let want = reference_quantise(lo, hi, &kids[..n]);
-            assert_eq!(got, want, "case {i}: [{lo:e}, {hi:e}] {:?}", &kids[..n]);
+            assert_eq!(bits(got), bits(want), "case {i}: [{lo:e}, {hi:e}] {:?}", &kids[..n]);
             if got.is_some() { some += 1 } else { none += 1 }
         }
         // Where the finest power of two changes: |lo| + 2^(e + 8) at, just below and just above
@@ -641,10 +643,15 @@ mod tests {
                         continue;
                     }
                     let kids = [(lo, lo + 0.3 * (hi - lo)), (lo + 0.5 * (hi - lo), hi)];
-                    assert_eq!(quantise_axis(lo, hi, &kids), reference_quantise(lo, hi, &kids), "[{lo:e}, {hi:e}]");
+                    assert_eq!(bits(quantise_axis(lo, hi, &kids)), bits(reference_quantise(lo, hi, &kids)), "[{lo:e}, {hi:e}]");
                     some += 1;
                 }
             }
+        }
+        // Signed zeros (the origin is −0 for a bound of −0, as in f64).
+        for (lo, hi) in [(-0.0f32, 1.0f32), (0.0, 1.0), (-0.0, 0.0), (-0.0, -0.0), (0.0, 3e-38)] {
+            let kids = [(lo, hi), (lo, hi)];
+            assert_eq!(bits(quantise_axis(lo, hi, &kids)), bits(reference_quantise(lo, hi, &kids)), "[{lo:e}, {hi:e}]");
         }
         assert!(some > 300_000 && none > 20, "{some} quantised, {none} not");
     }

@@ -1609,7 +1609,7 @@ impl Kernel for RasterHits<'_> {
 }
 
 /// The linear BVH build's kernels (`kdray_shared::bvh::build`), each over its `threads` items;
-/// `crate::bvh::gpu` records them.
+/// `crate::lbvh` records them.
 pub mod lbvh {
     use super::*;
     use kdray_shared::bvh::build;

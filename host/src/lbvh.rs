@@ -157,14 +157,13 @@ pub fn build_on(rt: &dyn Runtime, tris: &[Triangle]) -> Result<LbvhData> {
     rt.submit(c)?;
     let st: Vec<u32> = cast(rt.wait(ps)?);
     let build_s = t1.elapsed().as_secs_f64();
-    let err = st[build::STATE_ERROR];
-    if err != 0 {
-        if err & 0xff != 0 {
-            bail!(TooLarge: "the kernels' BVH build made a tree deeper than {MAX_BVH_DEPTH} levels (the host's builder balances such scenes)");
-        }
-        if err & 0xff00 != 0 {
-            bail!(TooLarge: "a BVH node of the kernels' build is too large to quantise");
-        }
+    if st[build::STATE_ERROR_DEPTH] != 0 {
+        bail!(TooLarge: "the kernels' BVH build made a tree deeper than {MAX_BVH_DEPTH} levels (the host's builder balances such scenes)");
+    }
+    if st[build::STATE_ERROR_QUANTISE] != 0 {
+        bail!(TooLarge: "a BVH node of the kernels' build is too large to quantise");
+    }
+    if st[build::STATE_ERROR_NODES] != 0 {
         bail!(TooLarge: "the kernels' BVH build made more nodes than it allocated");
     }
     let (count, placed) = (st[build::STATE_NODES] as usize, st[build::STATE_TRIS] as usize);

@@ -27,7 +27,8 @@
 //!    sorted order). It takes its child nodes' and leaf triangles' places by atomic additions
 //!    (so the layout depends on the order they happen in; the tree does not), copies its leaf
 //!    triangles, and encodes itself. Levels past `MAX_BVH_DEPTH`, a box too large to quantise
-//!    or more nodes than allocated set `STATE_ERROR`.
+//!    or more nodes than allocated are counted in their `STATE_ERROR_*` words (and end the
+//!    build).
 use super::{BvhNode, BVH_WIDTH, MAX_BVH_DEPTH, MAX_LEAF_TRIS};
 use crate::kernel::{AtomicStore, Store};
 use crate::math::exp2i;
@@ -147,10 +148,21 @@ pub struct AxisGrid {
 /// kernels reconstruct it.
 pub fn quantise_axis(lo: f32, hi: f32, kids: &[(f32, f32); BVH_WIDTH], n: usize) -> Option<AxisGrid> {
     // The smallest e with 255 · 2^e ≥ hi − lo (halved so it cannot overflow) or one less: the
-    // rounded quotient never exceeds 2^e when the exact one does not (255 · 2^e and 2^e are
-    // f32 values and rounding is monotonic), though it may fall to 2^e from just above.
-    let x = (0.5 * hi - 0.5 * lo) / 127.5;
-    let mut e = if x > 0.0 { ilog2(x) + if x.to_bits() & 0x7f_ffff != 0 { 1 } else { 0 } } else { -100 };
+    // rounded half extent never exceeds 127.5 · 2^e when the exact one does not (127.5 · 2^e is
+    // an f32 value and rounding is monotonic), though it may fall to it from just above.
+    // By exact operations only (a GPU's division need not be correctly rounded): the smallest
+    // e with 127.5 · 2^e ≥ h, h half the rounded extent.
+    let h = 0.5 * hi - 0.5 * lo;
+    let mut e = -100;
+    if h > 0.0 {
+        e = ilog2(h) - 6;
+        if e < -120 {
+            e = -120;
+        }
+        if h > 127.5 * exp2i(e) {
+            e += 1;
+        }
+    }
     let max_abs = if lo.abs() > hi.abs() { lo.abs() } else { hi.abs() };
     if max_abs > 0.0 {
         // Every grid value must be an f32 multiple of a power of two no coarser than the step.
@@ -194,7 +206,8 @@ pub fn quantise_axis(lo: f32, hi: f32, kids: &[(f32, f32); BVH_WIDTH], n: usize)
             k = -1;
         }
         if d <= 16 && k.unsigned_abs() + (255u32 << d) < 1 << 24 {
-            let origin = k as f32 * exp2i(f);
+            // (−0 for a lower bound of −0, as `lo` rounded down in f64.)
+            let origin = if k == 0 { f32::from_bits(lo.to_bits() & 0x8000_0000) } else { k as f32 * exp2i(f) };
             let s = exp2i(e);
             let inv = exp2i(-e);
             let at = |q: u32| origin + s * q as f32;
@@ -326,19 +339,16 @@ pub const STATE_LEVEL_START: usize = 2;
 pub const STATE_LEVEL_END: usize = 3;
 /// Leaf children made.
 pub const STATE_LEAVES: usize = 4;
-/// Nonzero when the build failed: `ERROR_DEPTH`, `ERROR_QUANTISE` or `ERROR_NODES` (or'ed in
-/// by addition: any nonzero value is a failure).
-pub const STATE_ERROR: usize = 5;
 /// Levels of the wide tree that made nodes.
-pub const STATE_DEPTH: usize = 6;
+pub const STATE_DEPTH: usize = 5;
+/// Nodes that would have made children deeper than `MAX_BVH_DEPTH` (nonzero: the build failed).
+pub const STATE_ERROR_DEPTH: usize = 6;
+/// Nodes with a box too large to quantise (nonzero: the build failed).
+pub const STATE_ERROR_QUANTISE: usize = 7;
+/// Nodes that found no room for their children (nonzero: the build failed).
+pub const STATE_ERROR_NODES: usize = 8;
 /// Words of `state`.
-pub const STATE_WORDS: usize = 8;
-/// Deeper than `MAX_BVH_DEPTH`.
-pub const ERROR_DEPTH: u32 = 1;
-/// A box too large to quantise.
-pub const ERROR_QUANTISE: u32 = 1 << 8;
-/// More wide nodes than allocated.
-pub const ERROR_NODES: u32 = 1 << 16;
+pub const STATE_WORDS: usize = 9;
 
 impl BuildBox {
     /// The empty box (the union's identity).
@@ -380,7 +390,8 @@ impl BuildBox {
     #[inline(always)]
     pub fn half_area(&self) -> f32 {
         let d = [self.hi[0] - self.lo[0], self.hi[1] - self.lo[1], self.hi[2] - self.lo[2]];
-        d[0] * d[1] + d[1] * d[2] + d[2] * d[0]
+        // Multiply-adds written out, so no driver fuses them otherwise (the same value everywhere).
+        crate::math::fma(d[0], d[1], crate::math::fma(d[1], d[2], d[2] * d[0]))
     }
 }
 
@@ -725,6 +736,10 @@ pub fn collapse<S: AtomicStore + Store<u32> + ?Sized, P: Store<u32> + ?Sized, N:
     if i >= end - start {
         return;
     }
+    // After a failure the tree is not finished: nothing more is made.
+    if state.load(STATE_ERROR_DEPTH) != 0 || state.load(STATE_ERROR_QUANTISE) != 0 || state.load(STATE_ERROR_NODES) != 0 {
+        return;
+    }
     let w = start + i;
     let bin = Binary { nodes: nodes2, boxes: boxes2, tree };
     let b = pending.load(w as usize);
@@ -784,15 +799,16 @@ pub fn collapse<S: AtomicStore + Store<u32> + ?Sized, P: Store<u32> + ?Sized, N:
         s += 1;
     }
     if inner > 0 && p.level + 1 >= MAX_BVH_DEPTH as u32 {
-        state.atomic_add(STATE_ERROR, ERROR_DEPTH);
+        state.atomic_add(STATE_ERROR_DEPTH, 1);
         return;
     }
-    let child_base = if inner > 0 { state.atomic_add_shared(STATE_NODES, inner) } else { 0 };
+    // Every item of the level takes its places (possibly none) in the same two calls.
+    let child_base = state.atomic_add_shared(STATE_NODES, inner);
+    let tri_base = state.atomic_add_shared(STATE_TRIS, leaf_tris);
     if child_base + inner > out_nodes.len() as u32 || child_base + inner > pending.len() as u32 {
-        state.atomic_add(STATE_ERROR, ERROR_NODES);
+        state.atomic_add(STATE_ERROR_NODES, 1);
         return;
     }
-    let tri_base = if leaf_tris > 0 { state.atomic_add_shared(STATE_TRIS, leaf_tris) } else { 0 };
     let mut out = [SlotChild::default(); BVH_WIDTH];
     let (mut next_node, mut next_tri, mut leaves) = (0u32, 0u32, 0u32);
     let mut s = 0;
@@ -830,7 +846,7 @@ pub fn collapse<S: AtomicStore + Store<u32> + ?Sized, P: Store<u32> + ?Sized, N:
     match encode_node(parent.lo, parent.hi, &out, child_base, tri_base) {
         Some(node) => out_nodes.store(w as usize, node),
         None => {
-            state.atomic_add(STATE_ERROR, ERROR_QUANTISE);
+            state.atomic_add(STATE_ERROR_QUANTISE, 1);
         }
     }
 }
