@@ -221,6 +221,10 @@ fn cli_reports_one_error_line_and_exits_non_zero() {
     let (code, _, err) = kdray(&args, &[]);
     assert_eq!((code, err.lines().count()), (1, 1), "{err}");
     assert!(err.contains("rasterised primary hits trace with the BVH or the kd-tree's full stack"), "{err}");
+    // An option that bench would ignore is refused.
+    let (code, _, err) = kdray(&["bench", "build", "--device", "cpu", "--bvh-build", "kernels", "--out", "/dev/null"], &[]);
+    assert_eq!((code, err.lines().count()), (1, 1), "{err}");
+    assert!(err.starts_with("error: --bvh-build is render's"), "{err}");
 }
 
 #[test]

@@ -567,6 +567,9 @@ pub fn run(cli: Cli) -> Result<()> {
                 DeviceArg::Cpu => None,
             };
             println!("device: {}", crate::bench::device_line(gpu.as_ref()));
+            if build.bvh_build != BvhBuildArg::Host {
+                bail!("--bvh-build is render's: `bench build` measures both BVH builds, the other suites the host's");
+            }
             let opts = crate::bench::Options {
                 devices: several.iter().map(|b| b.as_ref()).collect(),
                 gpu: gpu.as_ref(),
