@@ -74,15 +74,21 @@ impl Bounds {
     }
     /// Surface area, in f64 (f32 overflows from coordinates of ~1e19 on).
     fn area(&self) -> f64 {
-        if self.lo[0] > self.hi[0] {
-            return 0.0;
-        }
-        let d = [(self.hi[0] - self.lo[0]) as f64, (self.hi[1] - self.lo[1]) as f64, (self.hi[2] - self.lo[2]) as f64];
-        2.0 * (d[0] * d[1] + d[1] * d[2] + d[2] * d[0])
+        surface_area(self.lo, self.hi)
     }
     fn centroid(&self) -> [f32; 3] {
         [0.5 * (self.lo[0] + self.hi[0]), 0.5 * (self.lo[1] + self.hi[1]), 0.5 * (self.lo[2] + self.hi[2])]
     }
+}
+
+/// Surface area of the box [`lo`, `hi`] in f64 (f32 overflows from coordinates of ~1e19 on), 0
+/// for an empty box: the SAH cost's measure, of this builder's trees and the kernels' (`crate::lbvh`).
+pub(crate) fn surface_area(lo: [f32; 3], hi: [f32; 3]) -> f64 {
+    if lo[0] > hi[0] {
+        return 0.0;
+    }
+    let d = [(hi[0] - lo[0]) as f64, (hi[1] - lo[1]) as f64, (hi[2] - lo[2]) as f64];
+    2.0 * (d[0] * d[1] + d[1] * d[2] + d[2] * d[0])
 }
 
 /// A binary BVH node: a leaf holds `prims[first..first + count]`.

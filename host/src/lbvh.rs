@@ -204,10 +204,7 @@ fn range_levels(n: u32) -> u32 {
 /// `MAX_LEAF_TRIS` triangles cost 1 a visit, the others are leaves costing their triangles),
 /// relative to the root's area, in `f64` as `crate::bvh` reports the host's.
 fn binary_sah(n: usize, nodes2: &[[u32; 4]], boxes2: &[BuildBox], leaf_boxes: &[BuildBox]) -> f64 {
-    let area = |b: &BuildBox| {
-        let d = [(b.hi[0] - b.lo[0]) as f64, (b.hi[1] - b.lo[1]) as f64, (b.hi[2] - b.lo[2]) as f64];
-        2.0 * (d[0] * d[1] + d[1] * d[2] + d[2] * d[0])
-    };
+    let area = |b: &BuildBox| crate::bvh::surface_area(b.lo, b.hi);
     let of = |r: u32| -> (usize, BuildBox) {
         if r & LEAF_BIT != 0 {
             (1, leaf_boxes[(r & !LEAF_BIT) as usize])
