@@ -404,6 +404,32 @@ fn the_kernels_build_valid_trees_that_find_the_oracles_hits() {
     }
 }
 
+/// Treelet restructuring of the kernels' binary tree (`build::treelet`), natively (the test
+/// above checks that the GPU builds the same trees): every round's tree is valid and finds the
+/// oracle's hits, and `build_on`'s (`TREELET_ROUNDS`) costs clearly less than Karras's tree as
+/// it comes (no rounds) and no more than about the host's SAH build.
+#[test]
+fn treelets_bring_the_kernels_tree_to_the_hosts_cost() {
+    for spec in ["cornell-glass", "cornell-chair", "chairs:16"] {
+        let s = scene::load(spec).unwrap();
+        let rays = rays_for(&s, 5_000, 21);
+        let host = kdray::bvh::try_build(&s.triangles).unwrap().sah_cost;
+        let karras = kdray::lbvh::build_with(&NATIVE, &s.triangles, 0).unwrap().bvh.sah_cost;
+        for rounds in 1..=3 {
+            let b = kdray::lbvh::build_with(&NATIVE, &s.triangles, rounds).unwrap().bvh;
+            let cost = b.sah_cost;
+            let b = check_tree(&format!("{spec} (kernels, {rounds} rounds)"), &s, b);
+            check_hits(&format!("{spec} (kernels, {rounds} rounds)"), &s, &b, &rays);
+            println!("{spec}: {rounds} rounds, SAH {cost:.2} (Karras's {karras:.2}, the host's {host:.2})");
+            assert!(cost < karras, "{spec}: {rounds} rounds cost {cost} against Karras's {karras}");
+        }
+        let cost = kdray::lbvh::build_on(&NATIVE, &s.triangles).unwrap().bvh.sah_cost;
+        assert!(cost <= 0.92 * karras && cost <= 1.05 * host, "{spec}: SAH {cost}: Karras's {karras}, the host's {host}");
+    }
+    let e = kdray::lbvh::build_with(&NATIVE, &scene::load("cornell").unwrap().triangles, kdray::lbvh::MAX_TREELET_ROUNDS + 1).unwrap_err();
+    assert!(matches!(e, kdray::Error::InvalidInput(_)) && e.to_string().contains("rounds"), "{e}");
+}
+
 /// `render --bvh-build kernels`: the same image as the host's BVH (the traversal is exact, so
 /// the tree that finds the hits does not change them), natively and on the GPU.
 #[test]

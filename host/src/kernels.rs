@@ -1779,6 +1779,10 @@ pub mod lbvh {
         pub sorted_codes: &'a Buffer<[u32; 2]>,
         /// Written: the inner nodes.
         pub nodes2: &'a Buffer<[u32; 4]>,
+        /// Written: their triangles' counts.
+        pub counts: &'a Buffer<u32>,
+        /// Written: each inner node's parent (the root's is not written).
+        pub parents: &'a Buffer<u32>,
     }
 
     impl Kernel for Hierarchy<'_> {
@@ -1789,14 +1793,24 @@ pub mod lbvh {
             bytemuck::bytes_of(&self.params)
         }
         fn bindings(&self) -> Vec<Bind<'_>> {
-            vec![read("sorted_codes", self.sorted_codes), write("nodes2", self.nodes2)]
+            vec![read("sorted_codes", self.sorted_codes), write("nodes2", self.nodes2), write("counts", self.counts), write("parents", self.parents)]
         }
         fn threads(&self) -> u32 {
             self.params.count.saturating_sub(1)
         }
         fn run(&self, t: u32) {
-            // SAFETY: as `Boxes`.
-            unsafe { build::hierarchy(t, &self.params, self.sorted_codes.host(), &mut self.nodes2.host_store()) }
+            // SAFETY: as `Boxes`; item t writes its node, its count and its inner children's
+            // parents (each node has one parent).
+            unsafe {
+                build::hierarchy(
+                    t,
+                    &self.params,
+                    self.sorted_codes.host(),
+                    &mut self.nodes2.host_store(),
+                    &mut self.counts.host_store(),
+                    &mut self.parents.host_store(),
+                )
+            }
         }
     }
 
@@ -1828,6 +1842,91 @@ pub mod lbvh {
         fn run(&self, t: u32) {
             // SAFETY: as `Boxes`.
             unsafe { build::bounds(t, &self.params, self.nodes2.host(), self.tree.host(), &mut self.boxes2.host_store()) }
+        }
+    }
+
+    /// Each inner node's depth in the binary tree (`build::depths`).
+    pub struct Depths<'a> {
+        /// Triangles.
+        pub params: LbvhParams,
+        /// The inner nodes' parents.
+        pub parents: &'a Buffer<u32>,
+        /// Written: their depths.
+        pub depths: &'a Buffer<u32>,
+    }
+
+    impl Kernel for Depths<'_> {
+        fn entry(&self) -> Cow<'static, str> {
+            "lbvh_depths".into()
+        }
+        fn params(&self) -> &[u8] {
+            bytemuck::bytes_of(&self.params)
+        }
+        fn bindings(&self) -> Vec<Bind<'_>> {
+            vec![read("parents", self.parents), write("depths", self.depths)]
+        }
+        fn threads(&self) -> u32 {
+            self.params.count.saturating_sub(1)
+        }
+        fn run(&self, t: u32) {
+            // SAFETY: as `Boxes`.
+            unsafe { build::depths(t, &self.params, self.parents.host(), &mut self.depths.host_store()) }
+        }
+    }
+
+    /// One phase of treelet restructuring (`build::treelet`, the phase as `params.level`).
+    pub struct Treelet<'a> {
+        /// Triangles and the phase.
+        pub params: LbvhParams,
+        /// The inner nodes' depths.
+        pub depths: &'a Buffer<u32>,
+        /// The range tree (level 0: the sorted triangles' boxes).
+        pub tree: &'a Buffer<BuildBox>,
+        /// The inner nodes (rewired).
+        pub nodes2: &'a Buffer<[u32; 4]>,
+        /// Their boxes (rewritten where rebuilt).
+        pub boxes2: &'a Buffer<BuildBox>,
+        /// Their triangles' counts (rewritten where rebuilt).
+        pub counts: &'a Buffer<u32>,
+        /// Their parents (rewritten where moved).
+        pub parents: &'a Buffer<u32>,
+    }
+
+    impl Kernel for Treelet<'_> {
+        fn entry(&self) -> Cow<'static, str> {
+            "lbvh_treelet".into()
+        }
+        fn params(&self) -> &[u8] {
+            bytemuck::bytes_of(&self.params)
+        }
+        fn bindings(&self) -> Vec<Bind<'_>> {
+            vec![
+                read("depths", self.depths),
+                read("tree", self.tree),
+                write("nodes2", self.nodes2),
+                write("boxes2", self.boxes2),
+                write("counts", self.counts),
+                write("parents", self.parents),
+            ]
+        }
+        fn threads(&self) -> u32 {
+            self.params.count.saturating_sub(1)
+        }
+        fn run(&self, t: u32) {
+            // SAFETY: as `Boxes`; the items of a phase write disjoint nodes and read only their
+            // own and nodes no item of the phase writes (`build::treelet`).
+            unsafe {
+                build::treelet(
+                    t,
+                    &self.params,
+                    self.depths.host(),
+                    self.tree.host(),
+                    &mut self.nodes2.host_store(),
+                    &mut self.boxes2.host_store(),
+                    &mut self.counts.host_store(),
+                    &mut self.parents.host_store(),
+                )
+            }
         }
     }
 
@@ -1870,6 +1969,8 @@ pub mod lbvh {
         pub nodes2: &'a Buffer<[u32; 4]>,
         /// Their boxes.
         pub boxes2: &'a Buffer<BuildBox>,
+        /// Their triangles' counts.
+        pub counts: &'a Buffer<u32>,
         /// The range tree (level 0: the sorted triangles' boxes).
         pub tree: &'a Buffer<BuildBox>,
         /// The build's state words (added to atomically).
@@ -1895,6 +1996,7 @@ pub mod lbvh {
                 read("sorted", self.sorted),
                 read("nodes2", self.nodes2),
                 read("boxes2", self.boxes2),
+                read("counts", self.counts),
                 read("tree", self.tree),
                 write("state", self.state),
                 write("pending", self.pending),
@@ -1916,6 +2018,7 @@ pub mod lbvh {
                     self.sorted.host(),
                     self.nodes2.host(),
                     self.boxes2.host(),
+                    self.counts.host(),
                     self.tree.host(),
                     &mut self.state.host_store(),
                     &mut self.pending.host_store(),

@@ -64,8 +64,10 @@ pub fn lbvh_hierarchy(
     #[spirv(push_constant)] params: &LbvhParams,
     #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] sorted_codes: &[[u32; 2]],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] nodes2: &mut [[u32; 4]],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] counts: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] parents: &mut [u32],
 ) {
-    build::hierarchy(crate::item(id, groups), params, sorted_codes, nodes2);
+    build::hierarchy(crate::item(id, groups), params, sorted_codes, nodes2, counts, parents);
 }
 
 #[spirv(compute(threads(64)))]
@@ -78,6 +80,32 @@ pub fn lbvh_bounds(
     #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] boxes2: &mut [BuildBox],
 ) {
     build::bounds(crate::item(id, groups), params, nodes2, tree, boxes2);
+}
+
+#[spirv(compute(threads(64)))]
+pub fn lbvh_depths(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(num_workgroups)] groups: UVec3,
+    #[spirv(push_constant)] params: &LbvhParams,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] parents: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] depths: &mut [u32],
+) {
+    build::depths(crate::item(id, groups), params, parents, depths);
+}
+
+#[spirv(compute(threads(64)))]
+pub fn lbvh_treelet(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(num_workgroups)] groups: UVec3,
+    #[spirv(push_constant)] params: &LbvhParams,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] depths: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] tree: &[BuildBox],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] nodes2: &mut [[u32; 4]],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] boxes2: &mut [BuildBox],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] counts: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] parents: &mut [u32],
+) {
+    build::treelet(crate::item(id, groups), params, depths, tree, nodes2, boxes2, counts, parents);
 }
 
 #[spirv(compute(threads(64)))]
@@ -99,11 +127,12 @@ pub fn lbvh_collapse(
     #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] sorted: &[u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] nodes2: &[[u32; 4]],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] boxes2: &[BuildBox],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] tree: &[BuildBox],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] state: &mut [u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] pending: &mut [u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] bvh: &mut [BvhNode],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] bvh_tris: &mut [Triangle],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] counts: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] tree: &[BuildBox],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] state: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] pending: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] bvh: &mut [BvhNode],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 9)] bvh_tris: &mut [Triangle],
 ) {
-    build::collapse(crate::item(id, groups), params, tris, sorted, nodes2, boxes2, tree, &mut Atomics(state), pending, bvh, bvh_tris);
+    build::collapse(crate::item(id, groups), params, tris, sorted, nodes2, boxes2, counts, tree, &mut Atomics(state), pending, bvh, bvh_tris);
 }

@@ -5,8 +5,10 @@
 //! A kernel reads whole buffers through plain slices and writes through `Store`: on the GPU a
 //! storage-buffer slice, on the CPU a view that the runtime's threads share. The contract that
 //! makes the native twin safe is the GPU's own: within one dispatch, items write disjoint
-//! elements (item `i` writes element `i`, or its own range), and no buffer is both read as a
-//! slice and written.
+//! elements (item `i` writes element `i`, or its own range, or elements it alone owns in the
+//! dispatch, as a treelet's nodes in `bvh::build::treelet`), reads through `Store` only
+//! elements it writes itself or that no item of the dispatch writes, and no buffer is both read
+//! as a slice and written.
 
 /// `s[i]` without the bounds check that rust-gpu puts on every slice index (`IndexUnchecked`
 /// on the GPU, `get_unchecked` natively).
