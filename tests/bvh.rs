@@ -148,20 +148,27 @@ fn no_triangles_one_triangle_and_many_at_one_point() {
     check_hits("stacked", &stacked, &b, &rays_for(&stacked, 4_000, 5));
 }
 
-/// Triangles at positions 0.8^k (k = 0..120; sizes stay far from f32's subnormals, which GPUs
-/// flush to zero): the SAH peels one off per level, a chain far
-/// deeper than the traversal stack; the builder balances the rest once the depth runs out.
-#[test]
-fn a_chain_deeper_than_the_stack_is_balanced() {
+/// `n` triangles in the plane z = 0, the k-th at x = `ratio`^k and of that size times 0.2 (with
+/// `ratio` < 0.83 each clear of the next; above, overlapping it).
+fn chain(ratio: f32, n: i32) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
     let mut v = Vec::new();
     let mut f = Vec::new();
-    for k in 0..120 {
-        let x = (0.8f32).powi(k);
+    for k in 0..n {
+        let x = ratio.powi(k);
         let s = x * 0.2;
         let i = v.len() as u32;
         v.extend([[x, 0.0, 0.0], [x + s, 0.0, 0.0], [x, s, 0.0]]);
         f.push([i, i + 1, i + 2]);
     }
+    (v, f)
+}
+
+/// Triangles at positions 0.8^k (k = 0..120; sizes stay far from f32's subnormals, which GPUs
+/// flush to zero): the SAH peels one off per level, a chain far
+/// deeper than the traversal stack; the builder balances the rest once the depth runs out.
+#[test]
+fn a_chain_deeper_than_the_stack_is_balanced() {
+    let (v, f) = chain(0.8, 120);
     let chain = common::mesh_scene("chain", &v, &f);
     let b = check_structure("chain", &chain);
     let rays: Vec<Ray> = (0..120).map(|k| {
@@ -358,13 +365,7 @@ fn the_kernels_build_valid_trees_that_find_the_oracles_hits() {
     scenes.push(("stacked".into(), common::mesh_scene("stacked", &v, &f), None));
     // The chain of `a_chain_deeper_than_the_stack_is_balanced`: positions 0.8^k, most of them
     // in one Morton cell.
-    let (mut cv, mut cf) = (Vec::new(), Vec::new());
-    for k in 0..120 {
-        let x = (0.8f32).powi(k);
-        let i = cv.len() as u32;
-        cv.extend([[x, 0.0, 0.0], [x + x * 0.2, 0.0, 0.0], [x, x * 0.2, 0.0]]);
-        cf.push([i, i + 1, i + 2]);
-    }
+    let (cv, cf) = chain(0.8, 120);
     scenes.push(("chain".into(), common::mesh_scene("chain", &cv, &cf), None));
     // Rays from the centre (elsewhere the triangle test's products leave f32's range).
     for (name, center, radius) in [("huge", Vec3::splat(1e17), 3e16), ("tiny", Vec3::splat(3e-8), 1e-8), ("far", Vec3::new(-3.0e7, 1.0e5, 7.0e6), 0.5)] {
@@ -407,7 +408,9 @@ fn the_kernels_build_valid_trees_that_find_the_oracles_hits() {
 /// Treelet restructuring of the kernels' binary tree (`build::treelet`), natively (the test
 /// above checks that the GPU builds the same trees): every round's tree is valid and finds the
 /// oracle's hits, and `build_on`'s (`TREELET_ROUNDS`) costs clearly less than Karras's tree as
-/// it comes (no rounds) and no more than about the host's SAH build.
+/// it comes (no rounds) and no more than about the host's SAH build. A chain of ever smaller
+/// triangles, which the treelets would make deeper than the traversal's stack, is built again
+/// without them.
 #[test]
 fn treelets_bring_the_kernels_tree_to_the_hosts_cost() {
     for spec in ["cornell-glass", "cornell-chair", "chairs:16"] {
@@ -423,8 +426,24 @@ fn treelets_bring_the_kernels_tree_to_the_hosts_cost() {
             println!("{spec}: {rounds} rounds, SAH {cost:.2} (Karras's {karras:.2}, the host's {host:.2})");
             assert!(cost < karras, "{spec}: {rounds} rounds cost {cost} against Karras's {karras}");
         }
-        let cost = kdray::lbvh::build_on(&NATIVE, &s.triangles).unwrap().bvh.sah_cost;
+        let built = kdray::lbvh::build_on(&NATIVE, &s.triangles).unwrap();
+        assert_eq!(built.rounds, kdray::lbvh::TREELET_ROUNDS);
+        let cost = built.bvh.sah_cost;
         assert!(cost <= 0.92 * karras && cost <= 1.05 * host, "{spec}: SAH {cost}: Karras's {karras}, the host's {host}");
+    }
+    // Each triangle 2 % smaller than the last, overlapping it.
+    let (cv, cf) = chain(0.98, 4000);
+    // Most of its triangles share one Morton cell, so the sort's order within it (and the
+    // tree) varies from run to run: three rounds made it 29 levels deep or more than 32; with
+    // sixteen, always more.
+    let chain = Scene::from_mesh("chain", &cv, &cf).unwrap();
+    for rounds in [1, kdray::lbvh::TREELET_ROUNDS, kdray::lbvh::MAX_TREELET_ROUNDS] {
+        let built = kdray::lbvh::build_with(&NATIVE, &chain.triangles, rounds).unwrap();
+        println!("chain: {rounds} rounds asked, {} kept, depth {}", built.rounds, built.bvh.depth);
+        assert!(built.rounds == rounds || built.rounds == 0);
+        assert!(rounds < kdray::lbvh::MAX_TREELET_ROUNDS || built.rounds == 0, "the chain's tree kept its treelets (depth {})", built.bvh.depth);
+        // (Its hits are not compared with the oracle's: overlapping coplanar triangles tie.)
+        check_tree(&format!("chain (kernels, {rounds} rounds asked)"), &chain, built.bvh);
     }
     let e = kdray::lbvh::build_with(&NATIVE, &scene::load("cornell").unwrap().triangles, kdray::lbvh::MAX_TREELET_ROUNDS + 1).unwrap_err();
     assert!(matches!(e, kdray::Error::InvalidInput(_)) && e.to_string().contains("rounds"), "{e}");

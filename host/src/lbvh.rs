@@ -30,8 +30,9 @@ pub fn cell_bits(n: usize) -> u32 {
     (((log + 6).div_ceil(3)) * 3).clamp(12, 24)
 }
 
-/// Rounds of treelet restructuring `build_on` runs (`build::treelet`; three phases each, so
-/// that every inner node is a treelet's root once a round).
+/// Rounds of treelet restructuring `build_on` runs (`build::treelet`; three phases each, by
+/// depth modulo 3, so that about every inner node is a treelet's root once a round: depths
+/// change between phases).
 pub const TREELET_ROUNDS: u32 = 3;
 /// Rounds `build_with` takes at most.
 pub const MAX_TREELET_ROUNDS: u32 = 16;
@@ -48,6 +49,16 @@ pub struct LbvhData {
     pub setup_s: f64,
     /// Seconds to read the tree back.
     pub read_s: f64,
+    /// Rounds of treelet restructuring in this tree: those asked for, or 0 where they made a
+    /// tree deeper than `MAX_BVH_DEPTH` levels and the build was made again without them
+    /// (`build_s` and `setup_s` then count both builds).
+    pub rounds: u32,
+}
+
+/// One build's outcome: a tree, or (its seconds) one deeper than `MAX_BVH_DEPTH` levels.
+enum Built {
+    Tree(LbvhData),
+    TooDeep { build_s: f64, setup_s: f64 },
 }
 
 /// The working buffers of one build.
@@ -93,10 +104,31 @@ pub fn build_on(rt: &dyn Runtime, tris: &[Triangle]) -> Result<LbvhData> {
 /// `build_on` with `rounds` rounds of treelet restructuring (`build_on`'s default:
 /// `TREELET_ROUNDS`; 0: Karras's tree as it is; at most `MAX_TREELET_ROUNDS`, more are refused),
 /// to weigh tree quality against build time.
+/// The cheapest topology over a run of ever smaller boxes is a chain: on such input the treelets
+/// can make the tree deeper than `MAX_BVH_DEPTH` levels (a chain of 4 000 triangles shrinking by
+/// 2 % each: the wide tree's depth 11 without them, more than 32 after three rounds), and the
+/// build is then made again without them (`LbvhData::rounds` says so).
 pub fn build_with(rt: &dyn Runtime, tris: &[Triangle], rounds: u32) -> Result<LbvhData> {
     if rounds > MAX_TREELET_ROUNDS {
         bail!(InvalidInput: "{rounds} rounds of treelet restructuring: at most {MAX_TREELET_ROUNDS} (a fourth changed the SAH cost by under 1 % on the bench scenes)");
     }
+    let too_deep = || format!("the kernels' BVH build made a tree deeper than {MAX_BVH_DEPTH} levels (the host's builder balances such scenes)");
+    match build_once(rt, tris, rounds)? {
+        Built::Tree(t) => Ok(t),
+        Built::TooDeep { build_s, setup_s } if rounds > 0 => match build_once(rt, tris, 0)? {
+            Built::Tree(mut t) => {
+                t.build_s += build_s;
+                t.setup_s += setup_s;
+                Ok(t)
+            }
+            Built::TooDeep { .. } => bail!(TooLarge: "{}", too_deep()),
+        },
+        Built::TooDeep { .. } => bail!(TooLarge: "{}", too_deep()),
+    }
+}
+
+/// One build with `rounds` rounds of treelet restructuring (`build_with`).
+fn build_once(rt: &dyn Runtime, tris: &[Triangle], rounds: u32) -> Result<Built> {
     let n = tris.len();
     if n > MAX_TRIANGLES {
         bail!(TooLarge: "{n} triangles: the kernels' BVH build takes at most 2^29");
@@ -106,7 +138,7 @@ pub fn build_with(rt: &dyn Runtime, tris: &[Triangle], rounds: u32) -> Result<Lb
     }
     if n == 0 {
         let bvh = crate::bvh::try_build(tris)?;
-        return Ok(LbvhData { bvh, build_s: 0.0, setup_s: 0.0, read_s: 0.0 });
+        return Ok(Built::Tree(LbvhData { bvh, build_s: 0.0, setup_s: 0.0, read_s: 0.0, rounds }));
     }
     let t0 = Instant::now();
     let nu = n as u32;
@@ -197,7 +229,7 @@ pub fn build_with(rt: &dyn Runtime, tris: &[Triangle], rounds: u32) -> Result<Lb
     let st: Vec<u32> = cast(rt.wait(ps)?);
     let build_s = t1.elapsed().as_secs_f64();
     if st[build::STATE_ERROR_DEPTH] != 0 {
-        bail!(TooLarge: "the kernels' BVH build made a tree deeper than {MAX_BVH_DEPTH} levels (the host's builder balances such scenes)");
+        return Ok(Built::TooDeep { build_s, setup_s });
     }
     if st[build::STATE_ERROR_QUANTISE] != 0 {
         bail!(TooLarge: "a BVH node of the kernels' build is too large to quantise");
@@ -228,7 +260,7 @@ pub fn build_with(rt: &dyn Runtime, tris: &[Triangle], rounds: u32) -> Result<Lb
     let counts: Vec<u32> = cast(rt.wait(pc)?);
     let sah_cost = binary_sah(n, &nodes2, &boxes2, &counts, &leaf_boxes);
     let bvh = BvhData { nodes, tris: out_tris, depth: st[build::STATE_DEPTH] as usize, leaves: st[build::STATE_LEAVES] as usize, sah_cost };
-    Ok(LbvhData { bvh, build_s, setup_s, read_s })
+    Ok(Built::Tree(LbvhData { bvh, build_s, setup_s, read_s, rounds }))
 }
 
 /// Levels of the range tree over `n` boxes above level 0.
@@ -274,7 +306,61 @@ fn binary_sah(n: usize, nodes2: &[[u32; 4]], boxes2: &[BuildBox], counts: &[u32]
 
 #[cfg(test)]
 mod tests {
-    use kdray_shared::bvh::build::{cheapest_topology, grid_area, table_part, GridBox, TREELET_GRID_BITS, TREELET_LEAVES};
+    use kdray_shared::bvh::build::{cheapest_topology, grid_area, table_part, AreaGrid, GridBox, TREELET_GRID_BITS, TREELET_LEAVES};
+    use kdray_shared::BuildBox;
+
+    /// `AreaGrid::snap` rounds outwards onto the grid (in f64, each snapped box holds the box),
+    /// within one step, and snapping a union is the union of the snapped boxes (so a treelet's
+    /// cost now equals the sum over its snapped leaves); subnormal differences snap as zero,
+    /// as a GPU that flushes them computes; boxes of no extent or not finite have no grid.
+    #[test]
+    fn area_grids_round_outwards_and_keep_unions() {
+        let mut seed = 0x2545_f491u32;
+        let mut next = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            seed as f32 / u32::MAX as f32
+        };
+        for case in 0..2000 {
+            let (o, size) = ([next() * 200.0 - 100.0, next() * 1e-3, -next() * 1e6], [next() * 50.0 + 1e-3, next() * 1e-4 + 1e-9, next() * 3e5 + 1.0]);
+            let root = BuildBox { lo: o, hi: [o[0] + size[0], o[1] + size[1], o[2] + size[2]] };
+            let g = AreaGrid::new(&root).unwrap();
+            let mut inner = || {
+                let (a, b) = ([next(), next(), next()], [next(), next(), next()]);
+                let lo = [0, 1, 2].map(|k| root.lo[k] + (root.hi[k] - root.lo[k]) * a[k].min(b[k]));
+                let hi = [0, 1, 2].map(|k| (root.lo[k] + (root.hi[k] - root.lo[k]) * a[k].max(b[k])).min(root.hi[k]));
+                BuildBox { lo, hi }
+            };
+            let (x, y) = (inner(), inner());
+            let (sx, sy, su) = (g.snap(&x), g.snap(&y), g.snap(&x.union(&y)));
+            let union: GridBox = [[0, 1, 2].map(|k| sx[0][k].min(sy[0][k])), [0, 1, 2].map(|k| sx[1][k].max(sy[1][k]))];
+            assert_eq!(su, union, "case {case}");
+            // The grid's step: the power of two that puts the longest side within 2^bits steps.
+            let m = (0..3).map(|k| root.hi[k] - root.lo[k]).fold(0.0f32, f32::max) as f64;
+            let step = 2f64.powi(m.log2().ceil() as i32 - TREELET_GRID_BITS);
+            assert_eq!(g.snap(&root)[0], [0; 3], "case {case}");
+            for k in 0..3 {
+                let (l, h) = ((x.lo[k] as f64 - root.lo[k] as f64) / step, (x.hi[k] as f64 - root.lo[k] as f64) / step);
+                assert!(sx[0][k] as f64 <= l + 1e-3 && l < sx[0][k] as f64 + 1.0 + 1e-3, "case {case} axis {k}: lo {l} snapped {}", sx[0][k]);
+                assert!(sx[1][k] as f64 + 1e-3 >= h && (sx[1][k] as f64) < h + 1.0 + 1e-3, "case {case} axis {k}: hi {h} snapped {}", sx[1][k]);
+                assert!(sx[1][k] <= 1 << TREELET_GRID_BITS);
+            }
+        }
+        // A subnormal difference (from a root at 0) snaps as zero; a huge root's tiny product too.
+        let root = BuildBox { lo: [0.0; 3], hi: [1e-30, 1e-30, 1e-30] };
+        let g = AreaGrid::new(&root).unwrap();
+        let sub = f32::from_bits(5);
+        assert_eq!(g.snap(&BuildBox { lo: [sub; 3], hi: [sub; 3] }), [[0; 3]; 2]);
+        let root = BuildBox { lo: [-3e38; 3], hi: [3e38; 3] };
+        assert!(AreaGrid::new(&root).is_none(), "an extent past f32::MAX");
+        let root = BuildBox { lo: [0.0; 3], hi: [1e38; 3] };
+        let g = AreaGrid::new(&root).unwrap();
+        assert_eq!(g.snap(&BuildBox { lo: [0.0; 3], hi: [1e-4; 3] }), [[0; 3], [0; 3]], "a subnormal product");
+        assert_eq!(g.snap(&BuildBox { lo: [0.0; 3], hi: [1e36; 3] }), [[0; 3], [13; 3]], "1e36 is 12.04 steps of 2^116");
+        assert!(AreaGrid::new(&BuildBox { lo: [1.0; 3], hi: [1.0; 3] }).is_none());
+        assert!(AreaGrid::new(&BuildBox { lo: [0.0; 3], hi: [sub; 3] }).is_none());
+    }
 
     /// Every rooted binary tree over `m` leaves, built by inserting the leaves one at a time on
     /// every edge ((2m − 3)!! trees), each as the leaf sets of its inner nodes.

@@ -29,14 +29,18 @@
 //!    paper's bottom-up atomics) and rewiring its inner nodes into the topology of least SAH
 //!    cost over them (`cheapest_topology`, dynamic programming over the 2^5 subsets). Areas are
 //!    integers on a per-treelet grid of power-of-two steps (`AreaGrid`), so every device
-//!    makes the same choices. Karras's tree costs 16–47 % more than the host's SAH build on
-//!    the bench scenes; after two rounds, −5 % to +6 %.
+//!    makes the same choices. Karras's tree cost 22–47 % more than the host's SAH build on
+//!    the bench scenes; after three rounds, −4 % to +7 %. (Over a run of ever smaller
+//!    triangles the cheapest treelets are chains, which can make the tree too deep: the host
+//!    then builds again without them, `kdray::lbvh::build_with`.)
 //! 5. `collapse`, one dispatch per level of the wide tree (indirect: `level` turns the nodes
 //!    the last level made into the next one's items): a wide node takes its binary node's two
 //!    children and, until it has eight, replaces the inner child of largest area by its two;
-//!    a child of at most `MAX_LEAF_TRIS` triangles is a leaf (its triangles found by walking its
-//!    subtree: a treelet may have grouped triangles that are not consecutive). It takes its child nodes' and leaf triangles' places by atomic additions
-//!    (so the layout depends on the order they happen in; the tree does not), copies its leaf
+//!    a child of at most `MAX_LEAF_TRIS` triangles is a leaf (its triangles found by walking
+//!    its subtree: a treelet may have grouped triangles that are not consecutive). Areas are
+//!    compared on the node's `AreaGrid`. It takes its child nodes' and leaf triangles' places by
+//!    atomic additions (so the layout depends on the order they happen in; the tree does
+//!    not), copies its leaf
 //!    triangles, and encodes itself. Levels past `MAX_BVH_DEPTH`, a box too large to quantise
 //!    or more nodes than allocated are counted in their `STATE_ERROR_*` words (and end the
 //!    build).
@@ -682,7 +686,8 @@ pub fn bounds<S: Store<BuildBox> + ?Sized>(i: u32, p: &LbvhParams, nodes: &[[u32
 /// bench scenes, with a ninth of the search (3^5 against 3^7 steps) and a quarter of its
 /// per-item memory (on the H100, seven took 7.8 ms a phase on 1.5 M triangles).
 pub const TREELET_LEAVES: usize = 5;
-/// Depths `depths` counts up to; a node this deep or deeper is never a treelet's root.
+/// Depths `depths` counts up to; a node at `DEPTH_LIMIT − 3` or deeper is never a treelet's
+/// root (so every node a treelet expands has its exact depth).
 pub const DEPTH_LIMIT: u32 = 256;
 /// Nodes2's range words of an inner node that a treelet rebuilt (its triangles are no longer
 /// consecutive in sorted order; `counts` holds how many there are).
@@ -759,7 +764,8 @@ impl AreaGrid {
             }
             a += 1;
         }
-        if !(m > 0.0) {
+        // (A subnormal extent counts as none: a GPU may flush it to zero.)
+        if !(m >= f32::MIN_POSITIVE) {
             return None;
         }
         // 2^k with m · 2^k ≤ 2^TREELET_GRID_BITS: k = bits − ⌈log2 m⌉.
@@ -774,14 +780,26 @@ impl AreaGrid {
         let mut g = [[0u32; 3]; 2];
         let mut a = 0;
         while a < 3 {
-            let l = (b.lo[a] - self.lo[a]) * self.scale;
-            let h = (b.hi[a] - self.lo[a]) * self.scale;
+            // Subnormal differences and products as zero, as a GPU may flush them.
+            let l = flush(flush(b.lo[a] - self.lo[a]) * self.scale);
+            let h = flush(flush(b.hi[a] - self.lo[a]) * self.scale);
             g[0][a] = if l >= top { 1 << TREELET_GRID_BITS } else if l > 0.0 { l as u32 } else { 0 };
             let hc = if h >= top { 1 << TREELET_GRID_BITS } else if h > 0.0 { h as u32 } else { 0 };
             g[1][a] = if (hc as f32) < h && hc < 1 << TREELET_GRID_BITS { hc + 1 } else { hc };
             a += 1;
         }
         g
+    }
+}
+
+/// `x`, or 0 where it is subnormal (below `f32::MIN_POSITIVE` in magnitude), on every device
+/// alike: Vulkan lets a GPU flush subnormal values to zero.
+#[inline(always)]
+fn flush(x: f32) -> f32 {
+    if x.abs() < f32::MIN_POSITIVE {
+        0.0
+    } else {
+        x
     }
 }
 
@@ -868,10 +886,11 @@ pub fn table_part(table: &[u32; 1 << TREELET_LEAVES], set: u32) -> u32 {
 /// 1 and 2 below i, until there are `TREELET_LEAVES` leaves; the treelet's inner nodes are then
 /// rewired into the cheapest topology over those leaves (`cheapest_topology`) where that costs
 /// less. So two roots of one phase never share an inner node (each owns the nodes at depths 1
-/// and 2 below it, and its leaves at depth 3 are other roots, whose box and count no item
-/// changes): the items of a phase write disjoint nodes, and read only their own and those
-/// that no item writes. A rebuilt node's box, count and parent are rewritten (the root keeps
-/// its box and count); its range words become `NO_RANGE`.
+/// and 2 below it, expanded or not, and its leaves at depth 3 are other roots, whose box and
+/// count no item changes): the items of a phase write disjoint nodes, and read only their own
+/// and those that no item writes. A rebuilt node's box and count are rewritten (the root keeps
+/// its box and count), and every inner node of the new topology, rebuilt or leaf, gets its new
+/// parent; a rebuilt node's range words become `NO_RANGE`.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 pub fn treelet<N: Store<[u32; 4]> + ?Sized, B: Store<BuildBox> + ?Sized, C: Store<u32> + ?Sized, P: Store<u32> + ?Sized>(
