@@ -14,7 +14,7 @@ use crate::error::{bail, Result};
 use crate::kernels::lbvh::{Bounds, Boxes, Collapse, Depths, Hierarchy, Level, Morton, Reduce, Refine, Treelet};
 use crate::runtime::{cast, Buffer, Commands, Runtime};
 use crate::sort::CountingSort;
-use kdray_shared::bvh::build::{self, range_level, range_tree_len, LEAF_BIT, STATE_WORDS};
+use kdray_shared::bvh::build::{self, range_level, range_tree_shape, LEAF_BIT, STATE_WORDS};
 use kdray_shared::bvh::{BvhNode, MAX_BVH_DEPTH, MAX_LEAF_TRIS};
 use kdray_shared::{BuildBox, LbvhParams, Triangle};
 use std::time::Instant;
@@ -86,7 +86,7 @@ struct Work<'r> {
 
 /// Records the range tree's levels above level 0.
 fn record_reduce(rt: &dyn Runtime, c: &mut Commands, n: u32, tree: &Buffer<BuildBox>) -> Result<()> {
-    for level in 1..=range_levels(n) {
+    for level in 1..=range_tree_shape(n).0 {
         let (_, size) = range_level(n, level);
         rt.dispatch(c, &Reduce { params: LbvhParams { count: n, level, cell_bits: 0, root: 0 }, threads: size, tree })?;
     }
@@ -147,7 +147,7 @@ fn build_once(rt: &dyn Runtime, tris: &[Triangle], rounds: u32) -> Result<Built>
     let w = Work {
         tris: rt.upload("BVH build triangles", tris)?,
         list: rt.alloc("BVH build boxes", n)?,
-        tree: rt.alloc("BVH build range tree", range_tree_len(nu) as usize)?,
+        tree: rt.alloc("BVH build range tree", range_tree_shape(nu).1 as usize)?,
         codes: rt.alloc("BVH build codes", n)?,
         keys: rt.alloc("BVH build keys", n)?,
         order: rt.alloc("BVH build order", n)?,
@@ -177,7 +177,7 @@ fn build_once(rt: &dyn Runtime, tris: &[Triangle], rounds: u32) -> Result<Built>
 
     let t1 = Instant::now();
     let mut c = rt.begin();
-    let (top, _) = range_level(nu, range_levels(nu));
+    let (top, _) = range_level(nu, range_tree_shape(nu).0);
     let p = LbvhParams { count: nu, level: 0, cell_bits: bits, root: top };
     rt.dispatch(&mut c, &Boxes { params: p, tris: &w.tris, list: &w.list, tree: &w.tree })?;
     record_reduce(rt, &mut c, nu, &w.tree)?;
@@ -261,16 +261,6 @@ fn build_once(rt: &dyn Runtime, tris: &[Triangle], rounds: u32) -> Result<Built>
     let sah_cost = binary_sah(n, &nodes2, &boxes2, &counts, &leaf_boxes);
     let bvh = BvhData { nodes, tris: out_tris, depth: st[build::STATE_DEPTH] as usize, leaves: st[build::STATE_LEAVES] as usize, sah_cost };
     Ok(Built::Tree(LbvhData { bvh, build_s, setup_s, read_s, rounds }))
-}
-
-/// Levels of the range tree over `n` boxes above level 0.
-fn range_levels(n: u32) -> u32 {
-    let (mut size, mut levels) = (n, 0);
-    while size > 1 {
-        size = size.div_ceil(2);
-        levels += 1;
-    }
-    levels
 }
 
 /// The SAH cost of the binary tree as the collapse reads it (inner nodes of more than

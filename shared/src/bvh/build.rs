@@ -401,16 +401,19 @@ impl BuildBox {
     }
 }
 
-/// Entries of the range tree over `n` boxes (its levels: n, ⌈n/2⌉, … down to one).
+/// The range tree over `n` boxes (its levels: n, ⌈n/2⌉, … down to one): its levels above level
+/// 0, and its entries.
 #[inline(always)]
-pub fn range_tree_len(n: u32) -> u32 {
+pub fn range_tree_shape(n: u32) -> (u32, u32) {
     let mut size = n;
     let mut total = n;
+    let mut levels = 0;
     while size > 1 {
         size = size.div_ceil(2);
         total += size;
+        levels += 1;
     }
-    total
+    (levels, total)
 }
 
 /// The first entry of `level` of the range tree over `n` boxes, and its size.
