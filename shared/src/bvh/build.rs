@@ -685,9 +685,9 @@ pub fn bounds<S: Store<BuildBox> + ?Sized>(i: u32, p: &LbvhParams, nodes: &[[u32
 }
 
 /// Leaves of a treelet at most: its cheapest topology is searched over all 2^5 subsets of them.
-/// Karras & Aila take seven; five in three rounds give trees as cheap as seven in two on the
+/// Karras & Aila take seven; five in three rounds give trees within 2 % of seven in two on the
 /// bench scenes, with a ninth of the search (3^5 against 3^7 steps) and a quarter of its
-/// per-item memory (on the H100, seven took 7.8 ms a phase on 1.5 M triangles).
+/// per-item memory (on the H100, seven took 7.7–7.8 ms a phase on 1.5 M triangles, five 1.1).
 pub const TREELET_LEAVES: usize = 5;
 /// Depths `depths` counts up to; a node at `DEPTH_LIMIT − 3` or deeper is never a treelet's
 /// root (so every node a treelet expands has its exact depth).
@@ -738,12 +738,12 @@ pub type GridBox = [[u32; 3]; 2];
 
 /// The grid that boxes within a box (a treelet's root's; a wide node's) are compared by area
 /// on: its lower corner, and a power of two `scale` that puts its longest side at most
-/// 2^`TREELET_GRID_BITS` steps. A box snaps
-/// outwards to whole steps by a subtraction, a multiplication by a power of two and an integer
-/// conversion (each exact or correctly rounded on every Vulkan device, and none a multiply-add
-/// a driver could fuse), and areas are integers: so every device makes the same choices, bit
-/// for bit (float areas did not: lavapipe's and the CPU's trees differed where two topologies
-/// cost nearly the same).
+/// 2^`TREELET_GRID_BITS` steps. A box snaps outwards to whole steps by a subtraction, a
+/// multiplication by a power of two and an integer conversion (each exact or correctly rounded
+/// on every Vulkan device, none a multiply-add a driver could fuse, subnormal values flushed on
+/// every device alike), and areas are integers: so every device makes the same choices, bit for
+/// bit (float areas did not: lavapipe's and the CPU's trees differed where two topologies cost
+/// nearly the same).
 #[derive(Copy, Clone)]
 pub struct AreaGrid {
     lo: [f32; 3],
@@ -919,7 +919,9 @@ pub fn treelet<N: Store<[u32; 4]> + ?Sized, B: Store<BuildBox> + ?Sized, C: Stor
         None => return,
     };
     let root = nodes2.load(i as usize);
-    let mut leaves = [0u32; TREELET_LEAVES]; leaves[0] = root[0]; leaves[1] = root[1];
+    let mut leaves = [0u32; TREELET_LEAVES];
+    leaves[0] = root[0];
+    leaves[1] = root[1];
     let mut below = [1u32; TREELET_LEAVES];
     let mut inner = [i; TREELET_LEAVES - 1];
     let mut m = 2usize;
