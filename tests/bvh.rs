@@ -449,6 +449,50 @@ fn treelets_bring_the_kernels_tree_to_the_hosts_cost() {
     assert!(matches!(e, kdray::Error::InvalidInput(_)) && e.to_string().contains("rounds"), "{e}");
 }
 
+/// A builder that keeps its buffers (`lbvh::LbvhBuilder`, a scene rebuilt every frame) builds
+/// the trees of fresh buffers: on buffers that held a larger scene, on buffers filled with
+/// other bytes than a fresh one's zeros (so no kernel reads what the build did not write), and
+/// on new ones where a scene needs more; natively and on the GPU.
+#[test]
+fn a_builder_that_keeps_its_buffers_builds_the_same_trees() {
+    let large = scene::load("chairs:16").unwrap();
+    let small = scene::load("chairs:4").unwrap();
+    let larger = scene::load("chairs:64").unwrap();
+    let (nl, ns) = (large.triangles.len(), small.triangles.len());
+    // The small scene's sort takes the large one's bits (else its build would allocate anew).
+    assert!(ns < nl && kdray::lbvh::cell_bits(ns) == kdray::lbvh::cell_bits(nl));
+    assert!(larger.triangles.len() > nl);
+    let shape = |b: &BvhData| (b.sah_cost, b.leaves, b.nodes.len(), b.depth);
+    let gpu = common::gpu();
+    for rt in std::iter::once(&NATIVE as &dyn Runtime).chain(gpu.map(|g| g as &dyn Runtime)) {
+        let name = rt.name();
+        let fresh_small = kdray::lbvh::build_on(rt, &small.triangles).unwrap().bvh;
+        let mut builder = kdray::lbvh::LbvhBuilder::new(rt);
+        assert_eq!(builder.capacity(), 0);
+        let b = builder.build(&large.triangles, kdray::lbvh::TREELET_ROUNDS).unwrap().bvh;
+        assert_eq!(shape(&b), shape(&kdray::lbvh::build_on(rt, &large.triangles).unwrap().bvh), "{name}: chairs:16");
+        assert_eq!(builder.capacity(), nl);
+        for scribbled in [false, true] {
+            if scribbled {
+                builder.scribble().unwrap();
+            }
+            let b = builder.build(&small.triangles, kdray::lbvh::TREELET_ROUNDS).unwrap().bvh;
+            assert_eq!(builder.capacity(), nl, "{name}: the small scene's build allocated anew");
+            assert_eq!(shape(&b), shape(&fresh_small), "{name}: chairs:4 on kept buffers (scribbled over: {scribbled})");
+            let b = check_tree(&format!("chairs:4 (kept buffers, {name})"), &small, b);
+            check_hits(&format!("chairs:4 (kept buffers, {name})"), &small, &b, &rays_for(&small, 3_000, 5));
+        }
+        // Refused input leaves the buffers; more triangles take new ones.
+        let mut bad = small.triangles.clone();
+        bad[7].v2[0] = f32::INFINITY;
+        assert!(builder.build(&bad, kdray::lbvh::TREELET_ROUNDS).is_err());
+        assert_eq!(builder.capacity(), nl);
+        let b = builder.build(&larger.triangles, kdray::lbvh::TREELET_ROUNDS).unwrap().bvh;
+        assert_eq!(builder.capacity(), larger.triangles.len());
+        assert_eq!(shape(&b), shape(&kdray::lbvh::build_on(rt, &larger.triangles).unwrap().bvh), "{name}: chairs:64");
+    }
+}
+
 /// `render --bvh-build kernels`: the same image as the host's BVH (the traversal is exact, so
 /// the tree that finds the hits does not change them), natively and on the GPU.
 #[test]

@@ -45,7 +45,8 @@ pub struct LbvhData {
     /// Seconds from submitting the build's passes to their end (the build itself, on the
     /// device; the triangles already there).
     pub build_s: f64,
-    /// Seconds to upload the triangles and allocate the working buffers.
+    /// Seconds to upload the triangles and to allocate the working buffers (where a builder's
+    /// kept buffers did not fit: `LbvhBuilder`).
     pub setup_s: f64,
     /// Seconds to read the tree back.
     pub read_s: f64,
@@ -61,8 +62,11 @@ enum Built {
     TooDeep { build_s: f64, setup_s: f64 },
 }
 
-/// The working buffers of one build.
+/// The working buffers of a build, for up to `capacity` triangles whose Morton codes are sorted
+/// by `bits` bits (`cell_bits`).
 struct Work<'r> {
+    capacity: usize,
+    bits: u32,
     tris: Buffer<Triangle>,
     list: Buffer<BuildBox>,
     tree: Buffer<BuildBox>,
@@ -82,6 +86,240 @@ struct Work<'r> {
     pending: Buffer<u32>,
     bvh: Buffer<BvhNode>,
     bvh_tris: Buffer<Triangle>,
+}
+
+impl<'r> Work<'r> {
+    /// Buffers for `n` (at least one) triangles.
+    fn new(rt: &'r dyn Runtime, n: usize) -> Result<Self> {
+        let nu = n as u32;
+        let bits = cell_bits(n);
+        let inner = (n - 1).max(1);
+        Ok(Work {
+            capacity: n,
+            bits,
+            tris: rt.alloc("BVH build triangles", n)?,
+            list: rt.alloc("BVH build boxes", n)?,
+            tree: rt.alloc("BVH build range tree", range_tree_shape(nu).1 as usize)?,
+            codes: rt.alloc("BVH build codes", n)?,
+            keys: rt.alloc("BVH build keys", n)?,
+            order: rt.alloc("BVH build order", n)?,
+            sort: CountingSort::new(rt, 1 << bits, nu)?,
+            sorted: rt.alloc("BVH build sorted", n)?,
+            sorted_codes: rt.alloc("BVH build sorted codes", n)?,
+            nodes2: rt.alloc("BVH build binary nodes", inner)?,
+            boxes2: rt.alloc("BVH build binary boxes", inner)?,
+            counts: rt.alloc("BVH build binary counts", inner)?,
+            parents: rt.alloc("BVH build binary parents", inner)?,
+            depths: rt.alloc("BVH build binary depths", inner)?,
+            state: rt.alloc("BVH build state", STATE_WORDS)?,
+            args: rt.alloc("BVH build dispatch", 1)?,
+            // Every wide node but the root stands for a distinct inner node of more than
+            // MAX_LEAF_TRIS triangles: fewer than n.
+            pending: rt.alloc("BVH build pending", n)?,
+            bvh: rt.alloc("BVH nodes", n)?,
+            bvh_tris: rt.alloc("BVH triangles", n)?,
+        })
+    }
+
+    /// Whether a build of `n` triangles can use these buffers: no more triangles, and the sort
+    /// by the same bits (its cells are fixed). The kernels read only the first `n` elements, or
+    /// what the build itself wrote, so larger buffers hold the same tree.
+    fn fits(&self, n: usize) -> bool {
+        n <= self.capacity && cell_bits(n) == self.bits
+    }
+}
+
+/// Builds BVHs with the kernels on one runtime and keeps the working buffers from one build to
+/// the next, so a scene rebuilt every frame (its triangles moved) allocates them once:
+/// `build_with` is one builder's one build. A build of more triangles than the kept buffers
+/// hold, or of a count whose Morton sort takes other bits (`cell_bits`, which changes at each
+/// eighth power of two), allocates new ones; a build that fails drops them.
+///
+/// ```no_run
+/// # fn main() -> kdray::Result<()> {
+/// # let gpu = kdray::gpu::Gpu::new()?;
+/// # let frames: Vec<kdray::Scene> = Vec::new();
+/// let mut builder = kdray::lbvh::LbvhBuilder::new(&gpu);
+/// for scene in &frames {
+///     let bvh = builder.build(&scene.triangles, kdray::lbvh::TREELET_ROUNDS)?.bvh;
+///     # let _ = bvh;
+/// }
+/// # Ok(())
+/// # }
+/// ```
+pub struct LbvhBuilder<'r> {
+    rt: &'r dyn Runtime,
+    work: Option<Work<'r>>,
+}
+
+impl<'r> LbvhBuilder<'r> {
+    /// A builder on `rt`, with no buffers yet.
+    pub fn new(rt: &'r dyn Runtime) -> Self {
+        LbvhBuilder { rt, work: None }
+    }
+
+    /// Triangles the kept buffers hold (0: none kept).
+    pub fn capacity(&self) -> usize {
+        self.work.as_ref().map_or(0, |w| w.capacity)
+    }
+
+    /// `build_with` on the kept buffers where they fit.
+    pub fn build(&mut self, tris: &[Triangle], rounds: u32) -> Result<LbvhData> {
+        if rounds > MAX_TREELET_ROUNDS {
+            bail!(InvalidInput: "{rounds} rounds of treelet restructuring: at most {MAX_TREELET_ROUNDS} (a fourth changed the SAH cost by under 1 % on the bench scenes)");
+        }
+        let too_deep = || format!("the kernels' BVH build made a tree deeper than {MAX_BVH_DEPTH} levels (the host's builder balances such scenes)");
+        match self.build_once(tris, rounds)? {
+            Built::Tree(t) => Ok(t),
+            Built::TooDeep { build_s, setup_s } if rounds > 0 => match self.build_once(tris, 0)? {
+                Built::Tree(mut t) => {
+                    t.build_s += build_s;
+                    t.setup_s += setup_s;
+                    Ok(t)
+                }
+                Built::TooDeep { .. } => bail!(TooLarge: "{}", too_deep()),
+            },
+            Built::TooDeep { .. } => bail!(TooLarge: "{}", too_deep()),
+        }
+    }
+
+    /// Fills every kept buffer with other bytes than a fresh one's zeros, as if left by an
+    /// unknown earlier use (the counting sort's counts excepted: a sort leaves them zero, and
+    /// `CountingSort` is built on that). For tests: a build after this must be the same.
+    #[doc(hidden)]
+    pub fn scribble(&self) -> Result<()> {
+        let Some(w) = &self.work else { return Ok(()) };
+        let raws = [
+            w.tris.raw(), w.list.raw(), w.tree.raw(), w.codes.raw(), w.keys.raw(), w.order.raw(), w.sort.ranks.raw(), w.sort.offsets.raw(), w.sorted.raw(), w.sorted_codes.raw(),
+            w.nodes2.raw(), w.boxes2.raw(), w.counts.raw(), w.parents.raw(), w.depths.raw(), w.state.raw(), w.args.raw(), w.pending.raw(), w.bvh.raw(), w.bvh_tris.raw(),
+        ];
+        for b in raws {
+            self.rt.write_raw(b, &vec![0xa5; b.bytes() as usize])?;
+        }
+        self.rt.finish()
+    }
+
+    /// One build with `rounds` rounds of treelet restructuring (`build_with`).
+    fn build_once(&mut self, tris: &[Triangle], rounds: u32) -> Result<Built> {
+        let rt = self.rt;
+        let n = tris.len();
+        if n > MAX_TRIANGLES {
+            bail!(TooLarge: "{n} triangles: the kernels' BVH build takes at most 2^29");
+        }
+        if let Some(i) = tris.iter().position(|t| [t.v0, t.v1, t.v2].iter().flatten().any(|c| !c.is_finite())) {
+            bail!(InvalidInput: "triangle {i} has a vertex that is not a finite number");
+        }
+        if n == 0 {
+            let bvh = crate::bvh::try_build(tris)?;
+            return Ok(Built::Tree(LbvhData { bvh, build_s: 0.0, setup_s: 0.0, read_s: 0.0, rounds }));
+        }
+        let t0 = Instant::now();
+        let nu = n as u32;
+        let bits = cell_bits(n);
+        let inner = (n - 1).max(1);
+        // Kept buffers that fit, else new ones (the old ones freed first).
+        let w = match self.work.take() {
+            Some(w) if w.fits(n) => w,
+            _ => Work::new(rt, n)?,
+        };
+        rt.write(&w.tris, tris)?;
+        let mut state = [0u32; STATE_WORDS];
+        state[build::STATE_NODES] = 1;
+        rt.write(&w.state, &state)?;
+        // The root: inner node 0, or the one triangle.
+        rt.write(&w.pending, &[if n == 1 { LEAF_BIT } else { 0 }])?;
+        rt.finish()?;
+        let setup_s = t0.elapsed().as_secs_f64();
+
+        let t1 = Instant::now();
+        let mut c = rt.begin();
+        let (top, _) = range_level(nu, range_tree_shape(nu).0);
+        let p = LbvhParams { count: nu, level: 0, cell_bits: bits, root: top };
+        rt.dispatch(&mut c, &Boxes { params: p, tris: &w.tris, list: &w.list, tree: &w.tree })?;
+        record_reduce(rt, &mut c, nu, &w.tree)?;
+        rt.dispatch(&mut c, &Morton { params: p, list: &w.list, tree: &w.tree, codes: &w.codes, keys: &w.keys })?;
+        w.sort.record(&mut c, &w.keys, nu, &w.order)?;
+        rt.dispatch(
+            &mut c,
+            &Refine { params: p, order: &w.order, offsets: &w.sort.offsets, codes: &w.codes, list: &w.list, sorted: &w.sorted, sorted_codes: &w.sorted_codes, tree: &w.tree },
+        )?;
+        record_reduce(rt, &mut c, nu, &w.tree)?;
+        if n > 1 {
+            rt.dispatch(&mut c, &Hierarchy { params: p, sorted_codes: &w.sorted_codes, nodes2: &w.nodes2, counts: &w.counts, parents: &w.parents })?;
+            rt.dispatch(&mut c, &Bounds { params: p, nodes2: &w.nodes2, tree: &w.tree, boxes2: &w.boxes2 })?;
+            for _ in 0..rounds {
+                for phase in 0..3 {
+                    rt.dispatch(&mut c, &Depths { params: p, parents: &w.parents, depths: &w.depths })?;
+                    let k = Treelet {
+                        params: LbvhParams { level: phase, ..p },
+                        depths: &w.depths,
+                        tree: &w.tree,
+                        nodes2: &w.nodes2,
+                        boxes2: &w.boxes2,
+                        counts: &w.counts,
+                        parents: &w.parents,
+                    };
+                    rt.dispatch(&mut c, &k)?;
+                }
+            }
+        }
+        for level in 0..MAX_BVH_DEPTH as u32 {
+            rt.dispatch(&mut c, &Level { state: &w.state, args: &w.args })?;
+            let k = Collapse {
+                params: LbvhParams { level, ..p },
+                tris: &w.tris,
+                sorted: &w.sorted,
+                nodes2: &w.nodes2,
+                boxes2: &w.boxes2,
+                counts: &w.counts,
+                tree: &w.tree,
+                state: &w.state,
+                pending: &w.pending,
+                bvh: &w.bvh,
+                bvh_tris: &w.bvh_tris,
+            };
+            rt.dispatch_indirect(&mut c, &k, &w.args, 0)?;
+        }
+        let ps = rt.read_back_of(&mut c, &w.state, STATE_WORDS)?;
+        rt.submit(c)?;
+        let st: Vec<u32> = cast(rt.wait(ps)?);
+        let build_s = t1.elapsed().as_secs_f64();
+        if st[build::STATE_ERROR_DEPTH] != 0 {
+            self.work = Some(w);
+            return Ok(Built::TooDeep { build_s, setup_s });
+        }
+        if st[build::STATE_ERROR_QUANTISE] != 0 {
+            bail!(TooLarge: "a BVH node of the kernels' build is too large to quantise");
+        }
+        if st[build::STATE_ERROR_NODES] != 0 {
+            bail!(TooLarge: "the kernels' BVH build made more nodes than it allocated");
+        }
+        let (count, placed) = (st[build::STATE_NODES] as usize, st[build::STATE_TRIS] as usize);
+        if placed != n || count > n {
+            bail!(InvalidInput: "the kernels' BVH build placed {placed} of {n} triangles in {count} nodes");
+        }
+
+        let t2 = Instant::now();
+        let mut c = rt.begin();
+        let pn = rt.read_back_of(&mut c, &w.bvh, count)?;
+        let pt = rt.read_back_of(&mut c, &w.bvh_tris, n)?;
+        let p2 = rt.read_back_of(&mut c, &w.nodes2, inner)?;
+        let pb = rt.read_back_of(&mut c, &w.boxes2, inner)?;
+        let pl = rt.read_back_of(&mut c, &w.tree, n)?;
+        let pc = rt.read_back_of(&mut c, &w.counts, inner)?;
+        rt.submit(c)?;
+        let nodes: Vec<BvhNode> = cast(rt.wait(pn)?);
+        let out_tris: Vec<Triangle> = cast(rt.wait(pt)?);
+        let read_s = t2.elapsed().as_secs_f64();
+        let nodes2: Vec<[u32; 4]> = cast(rt.wait(p2)?);
+        let boxes2: Vec<BuildBox> = cast(rt.wait(pb)?);
+        let leaf_boxes: Vec<BuildBox> = cast(rt.wait(pl)?);
+        let counts: Vec<u32> = cast(rt.wait(pc)?);
+        let sah_cost = binary_sah(n, &nodes2, &boxes2, &counts, &leaf_boxes);
+        let bvh = BvhData { nodes, tris: out_tris, depth: st[build::STATE_DEPTH] as usize, leaves: st[build::STATE_LEAVES] as usize, sah_cost };
+        self.work = Some(w);
+        Ok(Built::Tree(LbvhData { bvh, build_s, setup_s, read_s, rounds }))
+    }
 }
 
 /// Records the range tree's levels above level 0.
@@ -109,158 +347,7 @@ pub fn build_on(rt: &dyn Runtime, tris: &[Triangle]) -> Result<LbvhData> {
 /// 2 % each: the wide tree's depth 11 without them, more than 32 after three rounds), and the
 /// build is then made again without them (`LbvhData::rounds` says so).
 pub fn build_with(rt: &dyn Runtime, tris: &[Triangle], rounds: u32) -> Result<LbvhData> {
-    if rounds > MAX_TREELET_ROUNDS {
-        bail!(InvalidInput: "{rounds} rounds of treelet restructuring: at most {MAX_TREELET_ROUNDS} (a fourth changed the SAH cost by under 1 % on the bench scenes)");
-    }
-    let too_deep = || format!("the kernels' BVH build made a tree deeper than {MAX_BVH_DEPTH} levels (the host's builder balances such scenes)");
-    match build_once(rt, tris, rounds)? {
-        Built::Tree(t) => Ok(t),
-        Built::TooDeep { build_s, setup_s } if rounds > 0 => match build_once(rt, tris, 0)? {
-            Built::Tree(mut t) => {
-                t.build_s += build_s;
-                t.setup_s += setup_s;
-                Ok(t)
-            }
-            Built::TooDeep { .. } => bail!(TooLarge: "{}", too_deep()),
-        },
-        Built::TooDeep { .. } => bail!(TooLarge: "{}", too_deep()),
-    }
-}
-
-/// One build with `rounds` rounds of treelet restructuring (`build_with`).
-fn build_once(rt: &dyn Runtime, tris: &[Triangle], rounds: u32) -> Result<Built> {
-    let n = tris.len();
-    if n > MAX_TRIANGLES {
-        bail!(TooLarge: "{n} triangles: the kernels' BVH build takes at most 2^29");
-    }
-    if let Some(i) = tris.iter().position(|t| [t.v0, t.v1, t.v2].iter().flatten().any(|c| !c.is_finite())) {
-        bail!(InvalidInput: "triangle {i} has a vertex that is not a finite number");
-    }
-    if n == 0 {
-        let bvh = crate::bvh::try_build(tris)?;
-        return Ok(Built::Tree(LbvhData { bvh, build_s: 0.0, setup_s: 0.0, read_s: 0.0, rounds }));
-    }
-    let t0 = Instant::now();
-    let nu = n as u32;
-    let bits = cell_bits(n);
-    let inner = (n - 1).max(1);
-    let w = Work {
-        tris: rt.upload("BVH build triangles", tris)?,
-        list: rt.alloc("BVH build boxes", n)?,
-        tree: rt.alloc("BVH build range tree", range_tree_shape(nu).1 as usize)?,
-        codes: rt.alloc("BVH build codes", n)?,
-        keys: rt.alloc("BVH build keys", n)?,
-        order: rt.alloc("BVH build order", n)?,
-        sort: CountingSort::new(rt, 1 << bits, nu)?,
-        sorted: rt.alloc("BVH build sorted", n)?,
-        sorted_codes: rt.alloc("BVH build sorted codes", n)?,
-        nodes2: rt.alloc("BVH build binary nodes", inner)?,
-        boxes2: rt.alloc("BVH build binary boxes", inner)?,
-        counts: rt.alloc("BVH build binary counts", inner)?,
-        parents: rt.alloc("BVH build binary parents", inner)?,
-        depths: rt.alloc("BVH build binary depths", inner)?,
-        state: rt.alloc("BVH build state", STATE_WORDS)?,
-        args: rt.alloc("BVH build dispatch", 1)?,
-        // Every wide node but the root stands for a distinct inner node of more than
-        // MAX_LEAF_TRIS triangles: fewer than n.
-        pending: rt.alloc("BVH build pending", n)?,
-        bvh: rt.alloc("BVH nodes", n)?,
-        bvh_tris: rt.alloc("BVH triangles", n)?,
-    };
-    let mut state = [0u32; STATE_WORDS];
-    state[build::STATE_NODES] = 1;
-    rt.write(&w.state, &state)?;
-    // The root: inner node 0, or the one triangle.
-    rt.write(&w.pending, &[if n == 1 { LEAF_BIT } else { 0 }])?;
-    rt.finish()?;
-    let setup_s = t0.elapsed().as_secs_f64();
-
-    let t1 = Instant::now();
-    let mut c = rt.begin();
-    let (top, _) = range_level(nu, range_tree_shape(nu).0);
-    let p = LbvhParams { count: nu, level: 0, cell_bits: bits, root: top };
-    rt.dispatch(&mut c, &Boxes { params: p, tris: &w.tris, list: &w.list, tree: &w.tree })?;
-    record_reduce(rt, &mut c, nu, &w.tree)?;
-    rt.dispatch(&mut c, &Morton { params: p, list: &w.list, tree: &w.tree, codes: &w.codes, keys: &w.keys })?;
-    w.sort.record(&mut c, &w.keys, nu, &w.order)?;
-    rt.dispatch(
-        &mut c,
-        &Refine { params: p, order: &w.order, offsets: &w.sort.offsets, codes: &w.codes, list: &w.list, sorted: &w.sorted, sorted_codes: &w.sorted_codes, tree: &w.tree },
-    )?;
-    record_reduce(rt, &mut c, nu, &w.tree)?;
-    if n > 1 {
-        rt.dispatch(&mut c, &Hierarchy { params: p, sorted_codes: &w.sorted_codes, nodes2: &w.nodes2, counts: &w.counts, parents: &w.parents })?;
-        rt.dispatch(&mut c, &Bounds { params: p, nodes2: &w.nodes2, tree: &w.tree, boxes2: &w.boxes2 })?;
-        for _ in 0..rounds {
-            for phase in 0..3 {
-                rt.dispatch(&mut c, &Depths { params: p, parents: &w.parents, depths: &w.depths })?;
-                let k = Treelet {
-                    params: LbvhParams { level: phase, ..p },
-                    depths: &w.depths,
-                    tree: &w.tree,
-                    nodes2: &w.nodes2,
-                    boxes2: &w.boxes2,
-                    counts: &w.counts,
-                    parents: &w.parents,
-                };
-                rt.dispatch(&mut c, &k)?;
-            }
-        }
-    }
-    for level in 0..MAX_BVH_DEPTH as u32 {
-        rt.dispatch(&mut c, &Level { state: &w.state, args: &w.args })?;
-        let k = Collapse {
-            params: LbvhParams { level, ..p },
-            tris: &w.tris,
-            sorted: &w.sorted,
-            nodes2: &w.nodes2,
-            boxes2: &w.boxes2,
-            counts: &w.counts,
-            tree: &w.tree,
-            state: &w.state,
-            pending: &w.pending,
-            bvh: &w.bvh,
-            bvh_tris: &w.bvh_tris,
-        };
-        rt.dispatch_indirect(&mut c, &k, &w.args, 0)?;
-    }
-    let ps = rt.read_back_of(&mut c, &w.state, STATE_WORDS)?;
-    rt.submit(c)?;
-    let st: Vec<u32> = cast(rt.wait(ps)?);
-    let build_s = t1.elapsed().as_secs_f64();
-    if st[build::STATE_ERROR_DEPTH] != 0 {
-        return Ok(Built::TooDeep { build_s, setup_s });
-    }
-    if st[build::STATE_ERROR_QUANTISE] != 0 {
-        bail!(TooLarge: "a BVH node of the kernels' build is too large to quantise");
-    }
-    if st[build::STATE_ERROR_NODES] != 0 {
-        bail!(TooLarge: "the kernels' BVH build made more nodes than it allocated");
-    }
-    let (count, placed) = (st[build::STATE_NODES] as usize, st[build::STATE_TRIS] as usize);
-    if placed != n || count > n {
-        bail!(InvalidInput: "the kernels' BVH build placed {placed} of {n} triangles in {count} nodes");
-    }
-
-    let t2 = Instant::now();
-    let mut c = rt.begin();
-    let pn = rt.read_back_of(&mut c, &w.bvh, count)?;
-    let pt = rt.read_back_of(&mut c, &w.bvh_tris, n)?;
-    let p2 = rt.read_back_of(&mut c, &w.nodes2, inner)?;
-    let pb = rt.read_back_of(&mut c, &w.boxes2, inner)?;
-    let pl = rt.read_back_of(&mut c, &w.tree, n)?;
-    let pc = rt.read_back_of(&mut c, &w.counts, inner)?;
-    rt.submit(c)?;
-    let nodes: Vec<BvhNode> = cast(rt.wait(pn)?);
-    let out_tris: Vec<Triangle> = cast(rt.wait(pt)?);
-    let read_s = t2.elapsed().as_secs_f64();
-    let nodes2: Vec<[u32; 4]> = cast(rt.wait(p2)?);
-    let boxes2: Vec<BuildBox> = cast(rt.wait(pb)?);
-    let leaf_boxes: Vec<BuildBox> = cast(rt.wait(pl)?);
-    let counts: Vec<u32> = cast(rt.wait(pc)?);
-    let sah_cost = binary_sah(n, &nodes2, &boxes2, &counts, &leaf_boxes);
-    let bvh = BvhData { nodes, tris: out_tris, depth: st[build::STATE_DEPTH] as usize, leaves: st[build::STATE_LEAVES] as usize, sah_cost };
-    Ok(Built::Tree(LbvhData { bvh, build_s, setup_s, read_s, rounds }))
+    LbvhBuilder::new(rt).build(tris, rounds)
 }
 
 /// The SAH cost of the binary tree as the collapse reads it (inner nodes of more than
