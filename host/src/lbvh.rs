@@ -132,8 +132,8 @@ impl<'r> Work<'r> {
 /// Builds BVHs with the kernels on one runtime and keeps the working buffers from one build to
 /// the next, so a scene rebuilt every frame (its triangles moved) allocates them once:
 /// `build_with` is one builder's one build. A build of more triangles than the kept buffers
-/// hold, or of a count whose Morton sort takes other bits (`cell_bits`, which changes at each
-/// eighth power of two), allocates new ones; a build that fails drops them.
+/// hold, or of a count whose Morton sort takes other bits (`cell_bits`, three more each time
+/// the count grows eightfold), allocates new ones; a build that fails drops them.
 ///
 /// ```no_run
 /// # fn main() -> kdray::Result<()> {
@@ -185,7 +185,9 @@ impl<'r> LbvhBuilder<'r> {
 
     /// Fills every kept buffer with other bytes than a fresh one's zeros, as if left by an
     /// unknown earlier use (the counting sort's counts excepted: a sort leaves them zero, and
-    /// `CountingSort` is built on that). For tests: a build after this must be the same.
+    /// `CountingSort` is built on that). For tests: a build after this must be the same. The
+    /// bytes 0x7f make every index and count far out of range and every coordinate about
+    /// 3.4e38, so a box united with one that was never written grows to nearly all of `f32`.
     #[doc(hidden)]
     pub fn scribble(&self) -> Result<()> {
         let Some(w) = &self.work else { return Ok(()) };
@@ -194,7 +196,7 @@ impl<'r> LbvhBuilder<'r> {
             w.nodes2.raw(), w.boxes2.raw(), w.counts.raw(), w.parents.raw(), w.depths.raw(), w.state.raw(), w.args.raw(), w.pending.raw(), w.bvh.raw(), w.bvh_tris.raw(),
         ];
         for b in raws {
-            self.rt.write_raw(b, &vec![0xa5; b.bytes() as usize])?;
+            self.rt.write_raw(b, &vec![0x7f; b.bytes() as usize])?;
         }
         self.rt.finish()
     }
@@ -217,10 +219,14 @@ impl<'r> LbvhBuilder<'r> {
         let nu = n as u32;
         let bits = cell_bits(n);
         let inner = (n - 1).max(1);
-        // Kept buffers that fit, else new ones (the old ones freed first).
+        // Kept buffers that fit, else new ones (the old ones freed first, so that growing needs
+        // no room for both).
+        if !self.work.as_ref().is_some_and(|w| w.fits(n)) {
+            self.work = None;
+        }
         let w = match self.work.take() {
-            Some(w) if w.fits(n) => w,
-            _ => Work::new(rt, n)?,
+            Some(w) => w,
+            None => Work::new(rt, n)?,
         };
         rt.write(&w.tris, tris)?;
         let mut state = [0u32; STATE_WORDS];
