@@ -621,10 +621,10 @@ fn build(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
         let mut builder = kdray::lbvh::LbvhBuilder::new(rt);
         let mut lbvh = builder.build(&scene.triangles, kdray::lbvh::TREELET_ROUNDS)?;
         // On a GPU each timed build follows a second of tracing (the scene's primary rays, the
-        // host's BVH): builds alone keep a GPU busy a fifth of the time or less (the rest is
-        // upload and read-back), and the driver then lowers its clocks (on the H100 from 1 980
-        // to 345 MHz within about a second, builds four times slower;
-        // docs/benchmarks/2026-12-07-h100-build-clocks/). A frame loop that renders keeps them up.
+        // host's BVH): on the H100 a process ran at 1 980 MHz for its first 3-4 s, then at 345,
+        // and builds alone (a tenth of the GPU's time or less; the rest is upload and
+        // read-back) did not raise the clock again, builds up to four times slower
+        // (docs/benchmarks/2026-12-07-h100-build-clocks/). A frame loop that renders keeps it up.
         // (Not on a CPU driver, which has no clocks to raise.)
         let warm = match o.gpu {
             Some(g) if !g.is_software() => {
