@@ -493,6 +493,70 @@ fn a_builder_that_keeps_its_buffers_builds_the_same_trees() {
     }
 }
 
+/// A tracer's BVH built by the kernels in place (`Tracer::build_bvh`: from the triangles on the
+/// device, into buffers that stay there) is the tree `LbvhBuilder::build` reads back, and gives
+/// its answers (natively, the oracle's bit for bit); after `Tracer::update` moved the
+/// triangles, a build on the same builder and the dropped BVH's buffers follows them, and the
+/// kd-tree given to `new` is gone; other counts are refused and change nothing. Natively and
+/// on the GPU.
+#[test]
+fn a_tracer_builds_its_bvh_in_place_and_follows_moved_triangles() {
+    let a = scene::load("chairs:16").unwrap();
+    // The same chairs sheared and lifted (every vertex moved), as a frame of an animation.
+    let mut b = a.clone();
+    for t in &mut b.triangles {
+        for v in [&mut t.v0, &mut t.v1, &mut t.v2] {
+            *v = [v[0] + 0.3 * v[1], v[1] + 0.05 * v[2] + 0.2, v[2] - 0.1 * v[0]];
+        }
+    }
+    let other = scene::load("chairs:4").unwrap();
+    let tree = kdray::kdtree::try_build(&a.triangles, &Default::default()).unwrap();
+    let gpu = common::gpu();
+    for rt in std::iter::once(&NATIVE as &dyn Runtime).chain(gpu.map(|g| g as &dyn Runtime)) {
+        let name = rt.name();
+        let mut builder = kdray::lbvh::LbvhBuilder::new(rt);
+        let mut t = Tracer::new(rt, &a, Some(&tree)).unwrap();
+        for (frame, s) in [(0, &a), (1, &b), (2, &a)] {
+            if frame > 0 {
+                t.update(s).unwrap();
+                assert!(t.check(Accel::BVH).is_err(), "{name}: frame {frame}: the BVH of the last frame is still there");
+                assert!(t.check(Accel::kd(kdray_shared::kdtree::Algorithm::Stack)).is_err(), "{name}: frame {frame}: the kd-tree is still there");
+            }
+            let built = t.build_bvh(&mut builder, kdray::lbvh::TREELET_ROUNDS).unwrap();
+            let read = kdray::lbvh::build_on(rt, &s.triangles).unwrap().bvh;
+            assert_eq!((built.nodes, built.leaves, built.depth), (read.nodes.len(), read.leaves, read.depth), "{name}: frame {frame}: another tree than the read-back build's");
+            let rays = rays_for(s, 3_000, 11 + frame);
+            let there = t.closest_hits(Accel::BVH, &rays).unwrap();
+            let back = Tracer::new(rt, s, None).unwrap().with_bvh(&read).unwrap();
+            let here = back.closest_hits(Accel::BVH, &rays).unwrap();
+            assert!(there == here, "{name}: frame {frame}: the in-place BVH answers {} of {} rays otherwise", (0..rays.len()).filter(|&i| there[i] != here[i]).count(), rays.len());
+            assert_eq!(t.any_hits(Accel::BVH, &rays).unwrap(), back.any_hits(Accel::BVH, &rays).unwrap(), "{name}: frame {frame}: any-hit");
+            let brute = Tracer::new(&NATIVE, s, None).unwrap();
+            let oracle = brute.closest_hits(Accel::BRUTE, &rays).unwrap();
+            assert!(there.iter().zip(&oracle).filter(|(h, o)| h.is_hit() != o.is_hit()).count() <= 2, "{name}: frame {frame}: hits where the oracle misses or the other way");
+            if rt.name() == NATIVE.name() {
+                common::assert_matches_oracle(&format!("{name}: frame {frame}"), &t, Accel::BVH, &rays, &oracle, &brute.any_hits(Accel::BRUTE, &rays).unwrap());
+            }
+            assert!(t.holds(s), "{name}: frame {frame}");
+        }
+        // Other counts: refused, the tracer as it was.
+        let mut fewer = a.clone();
+        fewer.triangles.pop();
+        for bad in [&other, &fewer] {
+            assert!(t.update(bad).is_err(), "{name}: an update with other counts was taken");
+        }
+        let mut nan = a.clone();
+        nan.triangles[5].v1[2] = f32::NAN;
+        assert!(t.update(&nan).is_err(), "{name}: a vertex that is not a number was taken");
+        assert!(t.holds(&a) && t.check(Accel::BVH).is_ok(), "{name}: a refused update changed the tracer");
+        // A builder of another runtime is refused.
+        if gpu.is_some() {
+            let other_rt: &dyn Runtime = if rt.name() == NATIVE.name() { gpu.unwrap() } else { &NATIVE };
+            assert!(t.build_bvh(&mut kdray::lbvh::LbvhBuilder::new(other_rt), 0).is_err(), "{name}: a builder on another runtime");
+        }
+    }
+}
+
 /// `render --bvh-build kernels`: the same image as the host's BVH (the traversal is exact, so
 /// the tree that finds the hits does not change them), natively and on the GPU.
 #[test]

@@ -52,14 +52,37 @@ pub struct LbvhData {
     pub read_s: f64,
     /// Rounds of treelet restructuring in this tree: those asked for, or 0 where they made a
     /// tree deeper than `MAX_BVH_DEPTH` levels and the build was made again without them
-    /// (`build_s` and `setup_s` then count both builds).
+    /// (`build_s` then counts both builds).
     pub rounds: u32,
 }
 
-/// One build's outcome: a tree, or (its seconds) one deeper than `MAX_BVH_DEPTH` levels.
-enum Built {
-    Tree(LbvhData),
-    TooDeep { build_s: f64, setup_s: f64 },
+/// What a build left in its output buffers, from the build's state words (read back alone).
+struct Tree {
+    nodes: usize,
+    leaves: usize,
+    depth: usize,
+}
+
+/// A build's outcome: a tree, or one deeper than `MAX_BVH_DEPTH` levels.
+enum Ran {
+    Tree(Tree),
+    TooDeep,
+}
+
+/// Where a build reads its `n` triangles and writes its tree (buffers of at least `n`
+/// elements each).
+struct Io<'a> {
+    tris: &'a Buffer<Triangle>,
+    bvh: &'a Buffer<BvhNode>,
+    bvh_tris: &'a Buffer<Triangle>,
+}
+
+/// The buffers a build that reads the triangles from the host (`LbvhBuilder::build`) uploads
+/// them to and writes its tree into, before reading it back.
+struct Own {
+    tris: Buffer<Triangle>,
+    bvh: Buffer<BvhNode>,
+    bvh_tris: Buffer<Triangle>,
 }
 
 /// The working buffers of a build, for up to `capacity` triangles whose Morton codes are sorted
@@ -67,7 +90,9 @@ enum Built {
 struct Work<'r> {
     capacity: usize,
     bits: u32,
-    tris: Buffer<Triangle>,
+    /// Made by the first build from the host (`LbvhBuilder::build`); a build into a tracer's
+    /// buffers (`LbvhBuilder::build_into`) needs none.
+    own: Option<Own>,
     list: Buffer<BuildBox>,
     tree: Buffer<BuildBox>,
     codes: Buffer<[u32; 2]>,
@@ -84,8 +109,6 @@ struct Work<'r> {
     state: Buffer<u32>,
     args: Buffer<[u32; 3]>,
     pending: Buffer<u32>,
-    bvh: Buffer<BvhNode>,
-    bvh_tris: Buffer<Triangle>,
 }
 
 impl<'r> Work<'r> {
@@ -97,7 +120,7 @@ impl<'r> Work<'r> {
         Ok(Work {
             capacity: n,
             bits,
-            tris: rt.alloc("BVH build triangles", n)?,
+            own: None,
             list: rt.alloc("BVH build boxes", n)?,
             tree: rt.alloc("BVH build range tree", range_tree_shape(nu).1 as usize)?,
             codes: rt.alloc("BVH build codes", n)?,
@@ -116,8 +139,6 @@ impl<'r> Work<'r> {
             // Every wide node but the root stands for a distinct inner node of more than
             // MAX_LEAF_TRIS triangles: fewer than n.
             pending: rt.alloc("BVH build pending", n)?,
-            bvh: rt.alloc("BVH nodes", n)?,
-            bvh_tris: rt.alloc("BVH triangles", n)?,
         })
     }
 
@@ -129,11 +150,22 @@ impl<'r> Work<'r> {
     }
 }
 
+/// Output buffers for a tree of `n` triangles: its nodes (fewer than `n`: see `Work::new`'s
+/// `pending`) and its triangles in leaf order.
+pub(crate) fn tree_buffers(rt: &dyn Runtime, n: usize) -> Result<(Buffer<BvhNode>, Buffer<Triangle>)> {
+    Ok((rt.alloc("BVH nodes", n)?, rt.alloc("BVH triangles", n)?))
+}
+
 /// Builds BVHs with the kernels on one runtime and keeps the working buffers from one build to
 /// the next, so a scene rebuilt every frame (its triangles moved) allocates them once:
 /// `build_with` is one builder's one build. A build of more triangles than the kept buffers
 /// hold, or of a count whose Morton sort takes other bits (`cell_bits`, three more each time
 /// the count grows eightfold), allocates new ones; a build that fails drops them.
+///
+/// `build` uploads the triangles and reads the tree back (`BvhData`: its SAH cost, and a tree
+/// any runtime can load). A frame loop on a GPU would rather leave the tree where it is:
+/// `Tracer::build_bvh` builds from the tracer's triangles into its own BVH buffers, with no
+/// upload and no read-back (`Tracer::update` moves the triangles).
 ///
 /// ```no_run
 /// # fn main() -> kdray::Result<()> {
@@ -158,6 +190,11 @@ impl<'r> LbvhBuilder<'r> {
         LbvhBuilder { rt, work: None }
     }
 
+    /// The runtime it builds on.
+    pub fn runtime(&self) -> &'r dyn Runtime {
+        self.rt
+    }
+
     /// Triangles the kept buffers hold (0: none kept).
     pub fn capacity(&self) -> usize {
         self.work.as_ref().map_or(0, |w| w.capacity)
@@ -165,150 +202,37 @@ impl<'r> LbvhBuilder<'r> {
 
     /// `build_with` on the kept buffers where they fit.
     pub fn build(&mut self, tris: &[Triangle], rounds: u32) -> Result<LbvhData> {
-        if rounds > MAX_TREELET_ROUNDS {
-            bail!(InvalidInput: "{rounds} rounds of treelet restructuring: at most {MAX_TREELET_ROUNDS} (a fourth changed the SAH cost by under 1 % on the bench scenes)");
-        }
-        let too_deep = || format!("the kernels' BVH build made a tree deeper than {MAX_BVH_DEPTH} levels (the host's builder balances such scenes)");
-        match self.build_once(tris, rounds)? {
-            Built::Tree(t) => Ok(t),
-            Built::TooDeep { build_s, setup_s } if rounds > 0 => match self.build_once(tris, 0)? {
-                Built::Tree(mut t) => {
-                    t.build_s += build_s;
-                    t.setup_s += setup_s;
-                    Ok(t)
-                }
-                Built::TooDeep { .. } => bail!(TooLarge: "{}", too_deep()),
-            },
-            Built::TooDeep { .. } => bail!(TooLarge: "{}", too_deep()),
-        }
-    }
-
-    /// Fills every kept buffer with other bytes than a fresh one's zeros, as if left by an
-    /// unknown earlier use (the counting sort's counts excepted: a sort leaves them zero, and
-    /// `CountingSort` is built on that). For tests: a build after this must be the same. The
-    /// bytes 0x7f make every index and count far out of range and every coordinate about
-    /// 3.4e38, so a box united with one that was never written grows to nearly all of `f32`.
-    #[doc(hidden)]
-    pub fn scribble(&self) -> Result<()> {
-        let Some(w) = &self.work else { return Ok(()) };
-        let raws = [
-            w.tris.raw(), w.list.raw(), w.tree.raw(), w.codes.raw(), w.keys.raw(), w.order.raw(), w.sort.ranks.raw(), w.sort.offsets.raw(), w.sorted.raw(), w.sorted_codes.raw(),
-            w.nodes2.raw(), w.boxes2.raw(), w.counts.raw(), w.parents.raw(), w.depths.raw(), w.state.raw(), w.args.raw(), w.pending.raw(), w.bvh.raw(), w.bvh_tris.raw(),
-        ];
-        for b in raws {
-            self.rt.write_raw(b, &vec![0x7f; b.bytes() as usize])?;
-        }
-        self.rt.finish()
-    }
-
-    /// One build with `rounds` rounds of treelet restructuring (`build_with`).
-    fn build_once(&mut self, tris: &[Triangle], rounds: u32) -> Result<Built> {
+        check_rounds(rounds)?;
         let rt = self.rt;
         let n = tris.len();
-        if n > MAX_TRIANGLES {
-            bail!(TooLarge: "{n} triangles: the kernels' BVH build takes at most 2^29");
-        }
+        check_count(n)?;
         if let Some(i) = tris.iter().position(|t| [t.v0, t.v1, t.v2].iter().flatten().any(|c| !c.is_finite())) {
             bail!(InvalidInput: "triangle {i} has a vertex that is not a finite number");
         }
         if n == 0 {
             let bvh = crate::bvh::try_build(tris)?;
-            return Ok(Built::Tree(LbvhData { bvh, build_s: 0.0, setup_s: 0.0, read_s: 0.0, rounds }));
+            return Ok(LbvhData { bvh, build_s: 0.0, setup_s: 0.0, read_s: 0.0, rounds });
         }
         let t0 = Instant::now();
-        let nu = n as u32;
-        let bits = cell_bits(n);
-        let inner = (n - 1).max(1);
-        // Kept buffers that fit, else new ones (the old ones freed first, so that growing needs
-        // no room for both).
-        if !self.work.as_ref().is_some_and(|w| w.fits(n)) {
-            self.work = None;
-        }
-        let w = match self.work.take() {
-            Some(w) => w,
-            None => Work::new(rt, n)?,
+        let mut w = self.work_for(n)?;
+        let own = match w.own.take() {
+            Some(o) => o,
+            None => {
+                let (bvh, bvh_tris) = tree_buffers(rt, w.capacity)?;
+                Own { tris: rt.alloc("BVH build triangles", w.capacity)?, bvh, bvh_tris }
+            }
         };
-        rt.write(&w.tris, tris)?;
-        let mut state = [0u32; STATE_WORDS];
-        state[build::STATE_NODES] = 1;
-        rt.write(&w.state, &state)?;
-        // The root: inner node 0, or the one triangle.
-        rt.write(&w.pending, &[if n == 1 { LEAF_BIT } else { 0 }])?;
+        rt.write(&own.tris, tris)?;
         rt.finish()?;
         let setup_s = t0.elapsed().as_secs_f64();
+        let io = Io { tris: &own.tris, bvh: &own.bvh, bvh_tris: &own.bvh_tris };
+        let (tree, build_s, rounds) = run_rounds(rt, &w, &io, n, rounds)?;
 
-        let t1 = Instant::now();
-        let mut c = rt.begin();
-        let (top, _) = range_level(nu, range_tree_shape(nu).0);
-        let p = LbvhParams { count: nu, level: 0, cell_bits: bits, root: top };
-        rt.dispatch(&mut c, &Boxes { params: p, tris: &w.tris, list: &w.list, tree: &w.tree })?;
-        record_reduce(rt, &mut c, nu, &w.tree)?;
-        rt.dispatch(&mut c, &Morton { params: p, list: &w.list, tree: &w.tree, codes: &w.codes, keys: &w.keys })?;
-        w.sort.record(&mut c, &w.keys, nu, &w.order)?;
-        rt.dispatch(
-            &mut c,
-            &Refine { params: p, order: &w.order, offsets: &w.sort.offsets, codes: &w.codes, list: &w.list, sorted: &w.sorted, sorted_codes: &w.sorted_codes, tree: &w.tree },
-        )?;
-        record_reduce(rt, &mut c, nu, &w.tree)?;
-        if n > 1 {
-            rt.dispatch(&mut c, &Hierarchy { params: p, sorted_codes: &w.sorted_codes, nodes2: &w.nodes2, counts: &w.counts, parents: &w.parents })?;
-            rt.dispatch(&mut c, &Bounds { params: p, nodes2: &w.nodes2, tree: &w.tree, boxes2: &w.boxes2 })?;
-            for _ in 0..rounds {
-                for phase in 0..3 {
-                    rt.dispatch(&mut c, &Depths { params: p, parents: &w.parents, depths: &w.depths })?;
-                    let k = Treelet {
-                        params: LbvhParams { level: phase, ..p },
-                        depths: &w.depths,
-                        tree: &w.tree,
-                        nodes2: &w.nodes2,
-                        boxes2: &w.boxes2,
-                        counts: &w.counts,
-                        parents: &w.parents,
-                    };
-                    rt.dispatch(&mut c, &k)?;
-                }
-            }
-        }
-        for level in 0..MAX_BVH_DEPTH as u32 {
-            rt.dispatch(&mut c, &Level { state: &w.state, args: &w.args })?;
-            let k = Collapse {
-                params: LbvhParams { level, ..p },
-                tris: &w.tris,
-                sorted: &w.sorted,
-                nodes2: &w.nodes2,
-                boxes2: &w.boxes2,
-                counts: &w.counts,
-                tree: &w.tree,
-                state: &w.state,
-                pending: &w.pending,
-                bvh: &w.bvh,
-                bvh_tris: &w.bvh_tris,
-            };
-            rt.dispatch_indirect(&mut c, &k, &w.args, 0)?;
-        }
-        let ps = rt.read_back_of(&mut c, &w.state, STATE_WORDS)?;
-        rt.submit(c)?;
-        let st: Vec<u32> = cast(rt.wait(ps)?);
-        let build_s = t1.elapsed().as_secs_f64();
-        if st[build::STATE_ERROR_DEPTH] != 0 {
-            self.work = Some(w);
-            return Ok(Built::TooDeep { build_s, setup_s });
-        }
-        if st[build::STATE_ERROR_QUANTISE] != 0 {
-            bail!(TooLarge: "a BVH node of the kernels' build is too large to quantise");
-        }
-        if st[build::STATE_ERROR_NODES] != 0 {
-            bail!(TooLarge: "the kernels' BVH build made more nodes than it allocated");
-        }
-        let (count, placed) = (st[build::STATE_NODES] as usize, st[build::STATE_TRIS] as usize);
-        if placed != n || count > n {
-            bail!(InvalidInput: "the kernels' BVH build placed {placed} of {n} triangles in {count} nodes");
-        }
-
+        let inner = (n - 1).max(1);
         let t2 = Instant::now();
         let mut c = rt.begin();
-        let pn = rt.read_back_of(&mut c, &w.bvh, count)?;
-        let pt = rt.read_back_of(&mut c, &w.bvh_tris, n)?;
+        let pn = rt.read_back_of(&mut c, &own.bvh, tree.nodes)?;
+        let pt = rt.read_back_of(&mut c, &own.bvh_tris, n)?;
         let p2 = rt.read_back_of(&mut c, &w.nodes2, inner)?;
         let pb = rt.read_back_of(&mut c, &w.boxes2, inner)?;
         let pl = rt.read_back_of(&mut c, &w.tree, n)?;
@@ -322,10 +246,193 @@ impl<'r> LbvhBuilder<'r> {
         let leaf_boxes: Vec<BuildBox> = cast(rt.wait(pl)?);
         let counts: Vec<u32> = cast(rt.wait(pc)?);
         let sah_cost = binary_sah(n, &nodes2, &boxes2, &counts, &leaf_boxes);
-        let bvh = BvhData { nodes, tris: out_tris, depth: st[build::STATE_DEPTH] as usize, leaves: st[build::STATE_LEAVES] as usize, sah_cost };
+        let bvh = BvhData { nodes, tris: out_tris, depth: tree.depth, leaves: tree.leaves, sah_cost };
+        w.own = Some(own);
         self.work = Some(w);
-        Ok(Built::Tree(LbvhData { bvh, build_s, setup_s, read_s, rounds }))
+        Ok(LbvhData { bvh, build_s, setup_s, read_s, rounds })
     }
+
+    /// Builds over the first `n` (at least one) triangles of `tris`, already on the device,
+    /// into `out` (nodes and triangles in leaf order, `tree_buffers`, at least `n` elements
+    /// each), on the kept buffers where they fit, and reads back only the build's state. The
+    /// triangles' vertices must be finite (`Scene::validate`; the tracer's are).
+    pub(crate) fn build_into(&mut self, tris: &Buffer<Triangle>, n: usize, out: &(Buffer<BvhNode>, Buffer<Triangle>), rounds: u32) -> Result<LbvhBuild> {
+        check_rounds(rounds)?;
+        check_count(n)?;
+        if n == 0 || tris.len() < n || out.0.len() < n || out.1.len() < n {
+            bail!(InvalidInput: "a BVH build of {n} triangles from a buffer of {} into buffers of {} and {}", tris.len(), out.0.len(), out.1.len());
+        }
+        let t0 = Instant::now();
+        let w = self.work_for(n)?;
+        let setup_s = t0.elapsed().as_secs_f64();
+        let io = Io { tris, bvh: &out.0, bvh_tris: &out.1 };
+        let (tree, build_s, rounds) = run_rounds(self.rt, &w, &io, n, rounds)?;
+        self.work = Some(w);
+        Ok(LbvhBuild { nodes: tree.nodes, leaves: tree.leaves, depth: tree.depth, build_s, setup_s, rounds })
+    }
+
+    /// The kept working buffers if they fit `n` triangles, else new ones (the old ones freed
+    /// first, so that growing needs no room for both). Taken out of the builder: a build that
+    /// fails drops them.
+    fn work_for(&mut self, n: usize) -> Result<Work<'r>> {
+        if !self.work.as_ref().is_some_and(|w| w.fits(n)) {
+            self.work = None;
+        }
+        match self.work.take() {
+            Some(w) => Ok(w),
+            None => Work::new(self.rt, n),
+        }
+    }
+
+    /// Fills every kept buffer with other bytes than a fresh one's zeros, as if left by an
+    /// unknown earlier use (the counting sort's counts excepted: a sort leaves them zero, and
+    /// `CountingSort` is built on that). For tests: a build after this must be the same. The
+    /// bytes 0x7f make every index and count far out of range and every coordinate about
+    /// 3.4e38, so a box united with one that was never written grows to nearly all of `f32`.
+    #[doc(hidden)]
+    pub fn scribble(&self) -> Result<()> {
+        let Some(w) = &self.work else { return Ok(()) };
+        let mut raws = vec![
+            w.list.raw(), w.tree.raw(), w.codes.raw(), w.keys.raw(), w.order.raw(), w.sort.ranks.raw(), w.sort.offsets.raw(), w.sorted.raw(), w.sorted_codes.raw(),
+            w.nodes2.raw(), w.boxes2.raw(), w.counts.raw(), w.parents.raw(), w.depths.raw(), w.state.raw(), w.args.raw(), w.pending.raw(),
+        ];
+        if let Some(o) = &w.own {
+            raws.extend([o.tris.raw(), o.bvh.raw(), o.bvh_tris.raw()]);
+        }
+        for b in raws {
+            self.rt.write_raw(b, &vec![0x7f; b.bytes() as usize])?;
+        }
+        self.rt.finish()
+    }
+}
+
+/// A BVH the kernels built and left on the device (`Tracer::build_bvh`), as its build reports
+/// it: no SAH cost (that needs the binary tree on the host: `LbvhBuilder::build`).
+#[derive(Clone, Debug)]
+pub struct LbvhBuild {
+    /// Wide nodes.
+    pub nodes: usize,
+    /// Leaves.
+    pub leaves: usize,
+    /// Depth in wide nodes.
+    pub depth: usize,
+    /// As `LbvhData::build_s`.
+    pub build_s: f64,
+    /// Seconds to allocate the working buffers where the kept ones did not fit (no upload).
+    pub setup_s: f64,
+    /// As `LbvhData::rounds`.
+    pub rounds: u32,
+}
+
+fn check_rounds(rounds: u32) -> Result<()> {
+    if rounds > MAX_TREELET_ROUNDS {
+        bail!(InvalidInput: "{rounds} rounds of treelet restructuring: at most {MAX_TREELET_ROUNDS} (a fourth changed the SAH cost by under 1 % on the bench scenes)");
+    }
+    Ok(())
+}
+
+fn check_count(n: usize) -> Result<()> {
+    if n > MAX_TRIANGLES {
+        bail!(TooLarge: "{n} triangles: the kernels' BVH build takes at most 2^29");
+    }
+    Ok(())
+}
+
+/// A build with `rounds` rounds of treelet restructuring, and again without them where that
+/// made a tree deeper than `MAX_BVH_DEPTH` levels: the tree, the seconds of both builds, and
+/// the rounds of the tree.
+fn run_rounds(rt: &dyn Runtime, w: &Work, io: &Io, n: usize, rounds: u32) -> Result<(Tree, f64, u32)> {
+    let too_deep = || format!("the kernels' BVH build made a tree deeper than {MAX_BVH_DEPTH} levels (the host's builder balances such scenes)");
+    let (ran, build_s) = run(rt, w, io, n, rounds)?;
+    match ran {
+        Ran::Tree(t) => Ok((t, build_s, rounds)),
+        Ran::TooDeep if rounds > 0 => match run(rt, w, io, n, 0)? {
+            (Ran::Tree(t), again) => Ok((t, build_s + again, 0)),
+            (Ran::TooDeep, _) => bail!(TooLarge: "{}", too_deep()),
+        },
+        Ran::TooDeep => bail!(TooLarge: "{}", too_deep()),
+    }
+}
+
+/// One build of `n` (at least one) triangles with `rounds` rounds of treelet restructuring
+/// (`build_with`): its outcome and seconds, from submitting the passes to their end.
+fn run(rt: &dyn Runtime, w: &Work, io: &Io, n: usize, rounds: u32) -> Result<(Ran, f64)> {
+    let nu = n as u32;
+    let bits = cell_bits(n);
+    let mut state = [0u32; STATE_WORDS];
+    state[build::STATE_NODES] = 1;
+    rt.write(&w.state, &state)?;
+    // The root: inner node 0, or the one triangle.
+    rt.write(&w.pending, &[if n == 1 { LEAF_BIT } else { 0 }])?;
+    rt.finish()?;
+
+    let t1 = Instant::now();
+    let mut c = rt.begin();
+    let (top, _) = range_level(nu, range_tree_shape(nu).0);
+    let p = LbvhParams { count: nu, level: 0, cell_bits: bits, root: top };
+    rt.dispatch(&mut c, &Boxes { params: p, tris: io.tris, list: &w.list, tree: &w.tree })?;
+    record_reduce(rt, &mut c, nu, &w.tree)?;
+    rt.dispatch(&mut c, &Morton { params: p, list: &w.list, tree: &w.tree, codes: &w.codes, keys: &w.keys })?;
+    w.sort.record(&mut c, &w.keys, nu, &w.order)?;
+    rt.dispatch(
+        &mut c,
+        &Refine { params: p, order: &w.order, offsets: &w.sort.offsets, codes: &w.codes, list: &w.list, sorted: &w.sorted, sorted_codes: &w.sorted_codes, tree: &w.tree },
+    )?;
+    record_reduce(rt, &mut c, nu, &w.tree)?;
+    if n > 1 {
+        rt.dispatch(&mut c, &Hierarchy { params: p, sorted_codes: &w.sorted_codes, nodes2: &w.nodes2, counts: &w.counts, parents: &w.parents })?;
+        rt.dispatch(&mut c, &Bounds { params: p, nodes2: &w.nodes2, tree: &w.tree, boxes2: &w.boxes2 })?;
+        for _ in 0..rounds {
+            for phase in 0..3 {
+                rt.dispatch(&mut c, &Depths { params: p, parents: &w.parents, depths: &w.depths })?;
+                let k = Treelet {
+                    params: LbvhParams { level: phase, ..p },
+                    depths: &w.depths,
+                    tree: &w.tree,
+                    nodes2: &w.nodes2,
+                    boxes2: &w.boxes2,
+                    counts: &w.counts,
+                    parents: &w.parents,
+                };
+                rt.dispatch(&mut c, &k)?;
+            }
+        }
+    }
+    for level in 0..MAX_BVH_DEPTH as u32 {
+        rt.dispatch(&mut c, &Level { state: &w.state, args: &w.args })?;
+        let k = Collapse {
+            params: LbvhParams { level, ..p },
+            tris: io.tris,
+            sorted: &w.sorted,
+            nodes2: &w.nodes2,
+            boxes2: &w.boxes2,
+            counts: &w.counts,
+            tree: &w.tree,
+            state: &w.state,
+            pending: &w.pending,
+            bvh: io.bvh,
+            bvh_tris: io.bvh_tris,
+        };
+        rt.dispatch_indirect(&mut c, &k, &w.args, 0)?;
+    }
+    let ps = rt.read_back_of(&mut c, &w.state, STATE_WORDS)?;
+    rt.submit(c)?;
+    let st: Vec<u32> = cast(rt.wait(ps)?);
+    let build_s = t1.elapsed().as_secs_f64();
+    if st[build::STATE_ERROR_DEPTH] != 0 {
+        return Ok((Ran::TooDeep, build_s));
+    }
+    if st[build::STATE_ERROR_QUANTISE] != 0 {
+        bail!(TooLarge: "a BVH node of the kernels' build is too large to quantise");
+    }
+    if st[build::STATE_ERROR_NODES] != 0 {
+        bail!(TooLarge: "the kernels' BVH build made more nodes than it allocated");
+    }
+    let (count, placed) = (st[build::STATE_NODES] as usize, st[build::STATE_TRIS] as usize);
+    if placed != n || count > n {
+        bail!(InvalidInput: "the kernels' BVH build placed {placed} of {n} triangles in {count} nodes");
+    }
+    Ok((Ran::Tree(Tree { nodes: count, leaves: st[build::STATE_LEAVES] as usize, depth: st[build::STATE_DEPTH] as usize }), build_s))
 }
 
 /// Records the range tree's levels above level 0.

@@ -309,6 +309,19 @@ impl<T: Pod> SplitBuffer<T> {
     pub fn split(&self) -> u32 {
         split_code(self.shift, self.parts.len() as u32)
     }
+    /// The first `len` elements of `buf` as an array bound whole (the buffer may hold more: a
+    /// tree built into buffers kept for larger trees, `Tracer::build_bvh`).
+    pub fn whole_of(buf: Buffer<T>, len: usize) -> Result<Self> {
+        if len > buf.len() {
+            bail!(InvalidInput: "{}: {len} elements of a buffer of {}", buf.raw().label(), buf.len());
+        }
+        Ok(SplitBuffer { parts: vec![buf], shift: 0, len })
+    }
+    /// The one buffer of an array bound whole (`None`, the parts dropped, if it is split).
+    pub fn into_whole(self) -> Option<Buffer<T>> {
+        let mut parts = self.parts;
+        (parts.len() == 1).then(|| parts.remove(0))
+    }
     /// The parts as a kernel's native twin reads them.
     ///
     /// # Safety
@@ -492,6 +505,17 @@ impl dyn Runtime + '_ {
             bail!(InvalidInput: "{}: {} elements written into a buffer of {}", buf.raw().label(), data.len(), buf.len());
         }
         self.write_raw(buf.raw(), bytemuck::cast_slice(data))
+    }
+
+    /// Copies `data` over a split array of as many elements, part by part.
+    pub fn write_split<T: Pod>(&self, buf: &SplitBuffer<T>, data: &[T]) -> Result<()> {
+        if data.len() != buf.len() {
+            bail!(InvalidInput: "{} elements written over an array of {}", data.len(), buf.len());
+        }
+        match buf.parts.as_slice() {
+            [one] => self.write(one, data),
+            parts => parts.iter().zip(data.chunks(1 << buf.shift)).try_for_each(|(p, c)| self.write(p, c)),
+        }
     }
 
     /// Records the passes `ks` in order; returns how many.

@@ -587,6 +587,7 @@ fn build(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
         "kernels' BVH ms",
         "kernels' BVH SAH cost",
         "primary ray visits: BVH / kernels' BVH",
+        "kernels' BVH frame ms: read back / in place",
     ]
     .map(String::from)
     .to_vec();
@@ -637,15 +638,40 @@ fn build(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
             }
             _ => None,
         };
-        for _ in 1..o.reps.max(3) {
+        let warm_up = || -> Result<()> {
             if let Some((g, t, rbuf, out, n)) = &warm {
                 let passes = t.query_passes::<kdray_shared::query::Closest>(Accel::BVH, *n, rbuf, out, None)?;
                 g.warm_up(&passes.iter().map(|k| k.as_ref()).collect::<Vec<_>>(), std::time::Duration::from_secs(1))?;
             }
+            Ok(())
+        };
+        // A frame of a scene rebuilt every frame, wall time to a BVH the tracer can use: the
+        // build read back and a tracer made with it (`LbvhBuilder::build`, `Tracer::new`,
+        // `with_bvh`), against the tracer's triangles written over and the BVH built where
+        // they are (`Tracer::update`, `Tracer::build_bvh`). The fastest of the repetitions.
+        let mut in_place = kdray::Tracer::new(rt, scene, None)?;
+        let mut in_place_builder = kdray::lbvh::LbvhBuilder::new(rt);
+        in_place.build_bvh(&mut in_place_builder, kdray::lbvh::TREELET_ROUNDS)?;
+        let (mut frame_read, mut frame_in_place) = (f64::INFINITY, f64::INFINITY);
+        for _ in 1..o.reps.max(3) {
+            warm_up()?;
             let again = builder.build(&scene.triangles, kdray::lbvh::TREELET_ROUNDS)?;
             if again.build_s < lbvh.build_s {
                 lbvh = again;
             }
+            warm_up()?;
+            let t0 = std::time::Instant::now();
+            let read = builder.build(&scene.triangles, kdray::lbvh::TREELET_ROUNDS)?;
+            let tracer = kdray::Tracer::new(rt, scene, None)?.with_bvh(&read.bvh)?;
+            rt.finish()?;
+            frame_read = frame_read.min(t0.elapsed().as_secs_f64());
+            drop(tracer);
+            warm_up()?;
+            let t0 = std::time::Instant::now();
+            in_place.update(scene)?;
+            in_place.build_bvh(&mut in_place_builder, kdray::lbvh::TREELET_ROUNDS)?;
+            rt.finish()?;
+            frame_in_place = frame_in_place.min(t0.elapsed().as_secs_f64());
         }
         let visits = |b: &kdray::bvh::BvhData| kdray::analysis::bvh_counts(b, &set.sample, true, false).iter().map(|c| (c.nodes + c.tris) as f64).sum::<f64>();
         cells.push(vec![
@@ -670,6 +696,7 @@ fn build(o: &Options, scenes: &mut Scenes) -> Result<Vec<PathBuf>> {
             format!("{:.2}", lbvh.build_s * 1e3),
             format!("{:.1}", lbvh.bvh.sah_cost),
             format!("{:.2}", visits(&bvh) / visits(&lbvh.bvh).max(1.0)),
+            format!("{:.1} / {:.1}", frame_read * 1e3, frame_in_place * 1e3),
         ]);
         bars.push((scene.name.clone(), per_m, per_million(bvh_seconds)));
         o.progress.inc(1);
