@@ -496,9 +496,10 @@ fn a_builder_that_keeps_its_buffers_builds_the_same_trees() {
 /// A tracer's BVH built by the kernels in place (`Tracer::build_bvh`: from the triangles on the
 /// device, into buffers that stay there) is the tree `LbvhBuilder::build` reads back, and gives
 /// its answers (natively, the oracle's bit for bit); after `Tracer::update` moved the
-/// triangles, a build on the same builder and the dropped BVH's buffers follows them, and the
-/// kd-tree given to `new` is gone; other counts are refused and change nothing. Natively and
-/// on the GPU.
+/// triangles and edited the materials (a floor become a light: more lights), a build on the
+/// same builder (once on scribbled buffers) and the dropped BVH's buffers follows them, the
+/// tracer's boxes, lights and image are a fresh tracer's, and the kd-tree given to `new` is
+/// gone; other counts are refused and change nothing. Natively and on the GPU.
 #[test]
 fn a_tracer_builds_its_bvh_in_place_and_follows_moved_triangles() {
     let a = scene::load("chairs:16").unwrap();
@@ -509,6 +510,18 @@ fn a_tracer_builds_its_bvh_in_place_and_follows_moved_triangles() {
             *v = [v[0] + 0.3 * v[1], v[1] + 0.05 * v[2] + 0.2, v[2] - 0.1 * v[0]];
         }
     }
+    let floor = b.material_id("floor").unwrap() as usize;
+    b.materials[floor].emission = [0.4, 0.3, 0.2];
+    let wood = b.material_id("wood").unwrap() as usize;
+    b.materials[wood].diffuse = [0.2, 0.5, 0.3];
+    assert!(b.lights().len() > a.lights().len());
+    // b moved on: as many lights, elsewhere.
+    let mut b2 = b.clone();
+    for t in &mut b2.triangles {
+        for v in [&mut t.v0, &mut t.v1, &mut t.v2] {
+            *v = [v[0] + 0.05, v[1] + 0.1, v[2]];
+        }
+    }
     let other = scene::load("chairs:4").unwrap();
     let tree = kdray::kdtree::try_build(&a.triangles, &Default::default()).unwrap();
     let gpu = common::gpu();
@@ -516,8 +529,11 @@ fn a_tracer_builds_its_bvh_in_place_and_follows_moved_triangles() {
         let name = rt.name();
         let mut builder = kdray::lbvh::LbvhBuilder::new(rt);
         let mut t = Tracer::new(rt, &a, Some(&tree)).unwrap();
-        for (frame, s) in [(0, &a), (1, &b), (2, &a)] {
+        for (frame, s) in [(0, &a), (1, &b), (2, &b2), (3, &a)] {
             if frame > 0 {
+                if frame == 2 {
+                    builder.scribble().unwrap();
+                }
                 t.update(s).unwrap();
                 assert!(t.check(Accel::BVH).is_err(), "{name}: frame {frame}: the BVH of the last frame is still there");
                 assert!(t.check(Accel::kd(kdray_shared::kdtree::Algorithm::Stack)).is_err(), "{name}: frame {frame}: the kd-tree is still there");
@@ -538,6 +554,18 @@ fn a_tracer_builds_its_bvh_in_place_and_follows_moved_triangles() {
                 common::assert_matches_oracle(&format!("{name}: frame {frame}"), &t, Accel::BVH, &rays, &oracle, &brute.any_hits(Accel::BRUTE, &rays).unwrap());
             }
             assert!(t.holds(s), "{name}: frame {frame}");
+            // Everything else `update` writes: as a tracer made for this frame.
+            assert_eq!((t.bounds(), t.trace_bounds(), t.light_count, t.has_specular), (back.bounds(), back.trace_bounds(), back.light_count, back.has_specular), "{name}: frame {frame}");
+            let cam = s.camera.to_pod(48, 48);
+            let (mine, fresh) = (kdray::integrator::direct::render(&t, Accel::BVH, &cam, 3, 2, &()).unwrap(), kdray::integrator::direct::render(&back, Accel::BVH, &cam, 3, 2, &()).unwrap());
+            assert!(mine.radiance == fresh.radiance, "{name}: frame {frame}: another image than a fresh tracer's");
+            if rt.name() == NATIVE.name() {
+                // Brute force's whole paths start from the tracer's box.
+                let o = kdray::integrator::path::PathOptions::path(3, 3, 1);
+                let cam = s.camera.to_pod(16, 16);
+                let (mine, fresh) = (kdray::integrator::path::render(&t, Accel::BRUTE, &cam, &o, &()).unwrap(), kdray::integrator::path::render(&back, Accel::BRUTE, &cam, &o, &()).unwrap());
+                assert!(mine.radiance == fresh.radiance, "{name}: frame {frame}: brute force renders another image than a fresh tracer's");
+            }
         }
         // Other counts: refused, the tracer as it was.
         let mut fewer = a.clone();

@@ -3,7 +3,9 @@
 //! codes, Karras's binary tree, its boxes from a range tree, and the collapse to the compressed
 //! wide BVH level by level, all as kernels, so a GPU builds the tree that its trace kernels
 //! (and the native ones) traverse. The host only uploads the triangles, records the passes
-//! and reads the tree back (`BvhData`, as `crate::bvh::try_build` returns it).
+//! and reads the tree back (`LbvhBuilder::build`: a `BvhData`, as `crate::bvh::try_build`
+//! returns it), or builds from a tracer's triangles into the tracer's own buffers and reads
+//! back only the build's state (`Tracer::build_bvh`).
 //!
 //! Quality: Morton order instead of the SAH, then `TREELET_ROUNDS` rounds of treelet
 //! restructuring (`build::treelet`), which bring the binary tree's SAH cost to about the host's
@@ -160,12 +162,15 @@ pub(crate) fn tree_buffers(rt: &dyn Runtime, n: usize) -> Result<(Buffer<BvhNode
 /// the next, so a scene rebuilt every frame (its triangles moved) allocates them once:
 /// `build_with` is one builder's one build. A build of more triangles than the kept buffers
 /// hold, or of a count whose Morton sort takes other bits (`cell_bits`, three more each time
-/// the count grows eightfold), allocates new ones; a build that fails drops them.
+/// the count grows eightfold), allocates new ones; a build that fails drops them (one that
+/// fails only for a tree too deep for the traversal keeps them).
 ///
 /// `build` uploads the triangles and reads the tree back (`BvhData`: its SAH cost, and a tree
 /// any runtime can load). A frame loop on a GPU would rather leave the tree where it is:
-/// `Tracer::build_bvh` builds from the tracer's triangles into its own BVH buffers, with no
-/// upload and no read-back (`Tracer::update` moves the triangles).
+/// `Tracer::build_bvh` builds from the tracer's triangles into its own BVH buffers, with
+/// nothing uploaded and only the build's state read back (`Tracer::update` writes the moved
+/// triangles first). A builder used both ways keeps `build`'s triangle and tree buffers too
+/// (about 176 bytes a triangle).
 ///
 /// ```no_run
 /// # fn main() -> kdray::Result<()> {
@@ -226,7 +231,11 @@ impl<'r> LbvhBuilder<'r> {
         rt.finish()?;
         let setup_s = t0.elapsed().as_secs_f64();
         let io = Io { tris: &own.tris, bvh: &own.bvh, bvh_tris: &own.bvh_tris };
-        let (tree, build_s, rounds) = run_rounds(rt, &w, &io, n, rounds)?;
+        let Some((tree, build_s, rounds)) = run_rounds(rt, &w, &io, n, rounds)? else {
+            w.own = Some(own);
+            self.work = Some(w);
+            bail!(TooLarge: "{}", too_deep());
+        };
 
         let inner = (n - 1).max(1);
         let t2 = Instant::now();
@@ -266,8 +275,9 @@ impl<'r> LbvhBuilder<'r> {
         let w = self.work_for(n)?;
         let setup_s = t0.elapsed().as_secs_f64();
         let io = Io { tris, bvh: &out.0, bvh_tris: &out.1 };
-        let (tree, build_s, rounds) = run_rounds(self.rt, &w, &io, n, rounds)?;
+        let ran = run_rounds(self.rt, &w, &io, n, rounds)?;
         self.work = Some(w);
+        let Some((tree, build_s, rounds)) = ran else { bail!(TooLarge: "{}", too_deep()) };
         Ok(LbvhBuild { nodes: tree.nodes, leaves: tree.leaves, depth: tree.depth, build_s, setup_s, rounds })
     }
 
@@ -318,13 +328,14 @@ pub struct LbvhBuild {
     pub depth: usize,
     /// As `LbvhData::build_s`.
     pub build_s: f64,
-    /// Seconds to allocate the working buffers where the kept ones did not fit (no upload).
+    /// Seconds to allocate the working buffers, and the tracer's BVH buffers, where the kept
+    /// ones did not fit (nothing is uploaded: the triangles are the tracer's).
     pub setup_s: f64,
     /// As `LbvhData::rounds`.
     pub rounds: u32,
 }
 
-fn check_rounds(rounds: u32) -> Result<()> {
+pub(crate) fn check_rounds(rounds: u32) -> Result<()> {
     if rounds > MAX_TREELET_ROUNDS {
         bail!(InvalidInput: "{rounds} rounds of treelet restructuring: at most {MAX_TREELET_ROUNDS} (a fourth changed the SAH cost by under 1 % on the bench scenes)");
     }
@@ -340,18 +351,23 @@ fn check_count(n: usize) -> Result<()> {
 
 /// A build with `rounds` rounds of treelet restructuring, and again without them where that
 /// made a tree deeper than `MAX_BVH_DEPTH` levels: the tree, the seconds of both builds, and
-/// the rounds of the tree.
-fn run_rounds(rt: &dyn Runtime, w: &Work, io: &Io, n: usize, rounds: u32) -> Result<(Tree, f64, u32)> {
-    let too_deep = || format!("the kernels' BVH build made a tree deeper than {MAX_BVH_DEPTH} levels (the host's builder balances such scenes)");
+/// the rounds of the tree; `None` where even the tree without them is too deep (`too_deep`).
+fn run_rounds(rt: &dyn Runtime, w: &Work, io: &Io, n: usize, rounds: u32) -> Result<Option<(Tree, f64, u32)>> {
     let (ran, build_s) = run(rt, w, io, n, rounds)?;
-    match ran {
-        Ran::Tree(t) => Ok((t, build_s, rounds)),
+    Ok(match ran {
+        Ran::Tree(t) => Some((t, build_s, rounds)),
         Ran::TooDeep if rounds > 0 => match run(rt, w, io, n, 0)? {
-            (Ran::Tree(t), again) => Ok((t, build_s + again, 0)),
-            (Ran::TooDeep, _) => bail!(TooLarge: "{}", too_deep()),
+            (Ran::Tree(t), again) => Some((t, build_s + again, 0)),
+            (Ran::TooDeep, _) => None,
         },
-        Ran::TooDeep => bail!(TooLarge: "{}", too_deep()),
-    }
+        Ran::TooDeep => None,
+    })
+}
+
+/// Why a build of a scene the kernels cannot build shallow enough fails (its buffers are
+/// kept: nothing went wrong with them).
+fn too_deep() -> String {
+    format!("the kernels' BVH build made a tree deeper than {MAX_BVH_DEPTH} levels (the host's builder balances such scenes)")
 }
 
 /// One build of `n` (at least one) triangles with `rounds` rounds of treelet restructuring

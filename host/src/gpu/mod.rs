@@ -1026,6 +1026,9 @@ impl Runtime for Gpu {
     }
 
     fn finish(&self) -> Result<()> {
+        // Queued writes reach the device with the next submission: an empty one sends them,
+        // so that a caller timing an upload (`LbvhData::setup_s`) times its transfer.
+        self.queue.submit(std::iter::empty());
         self.poll(None)?;
         self.collect_profile();
         Ok(())

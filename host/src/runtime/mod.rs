@@ -453,7 +453,7 @@ pub trait Runtime: Sync {
     fn submit(&self, c: Commands) -> Result<()>;
     /// Waits for a read-back and returns its contents as 4-byte words (`cast` types them).
     fn wait(&self, p: Pending) -> Result<Vec<u32>>;
-    /// Waits until everything submitted has run.
+    /// Waits until everything submitted, and every write (`write`, `write_raw`), has run.
     fn finish(&self) -> Result<()>;
 }
 

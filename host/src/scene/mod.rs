@@ -4,7 +4,7 @@ pub mod mitsuba;
 pub mod obj;
 pub mod procedural;
 
-use rayon::slice::ParallelSliceMut;
+use rayon::prelude::*;
 use crate::error::{bail, Context, Result};
 use glam::Vec3;
 use std::path::Path;
@@ -286,15 +286,21 @@ impl Scene {
 
     /// The box (min, max) around every triangle's vertices; (+∞, −∞) when there are no triangles.
     pub fn bounds(&self) -> (Vec3, Vec3) {
-        let mut lo = Vec3::splat(f32::INFINITY);
-        let mut hi = Vec3::splat(f32::NEG_INFINITY);
-        for t in &self.triangles {
-            for v in [t.v0, t.v1, t.v2] {
-                lo = lo.min(Vec3::from(v));
-                hi = hi.max(Vec3::from(v));
-            }
-        }
-        (lo, hi)
+        // In chunks over the cores (minima and maxima: the same box in any order).
+        let empty = || (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+        self.triangles
+            .par_chunks(1 << 14)
+            .map(|c| {
+                let (mut lo, mut hi) = empty();
+                for t in c {
+                    for v in [t.v0, t.v1, t.v2] {
+                        lo = lo.min(Vec3::from(v));
+                        hi = hi.max(Vec3::from(v));
+                    }
+                }
+                (lo, hi)
+            })
+            .reduce(empty, |a, b| (a.0.min(b.0), a.1.max(b.1)))
     }
 
     /// Lights to sample: every emissive triangle (chosen with probability ∝ area · luminance)
@@ -329,12 +335,16 @@ impl Scene {
     /// comes from; `cdf` is left at 0.
     fn light_entries(&self) -> Vec<(Light, f64, LightSource)> {
         let mut out = Vec::new();
+        let lums: Vec<f64> = self.materials.iter().map(|m| luminance(m.emission)).collect();
         for (i, t) in self.triangles.iter().enumerate() {
+            let lum = lums[t.material as usize];
+            if lum == 0.0 {
+                continue;
+            }
             let e = self.materials[t.material as usize].emission;
-            let lum = luminance(e);
             let (v0, v1, v2) = (Vec3::from(t.v0), Vec3::from(t.v1), Vec3::from(t.v2));
             let cross = (v1 - v0).cross(v2 - v0);
-            if lum == 0.0 || cross.length_squared() == 0.0 {
+            if cross.length_squared() == 0.0 {
                 continue;
             }
             let area = 0.5 * cross.length();
