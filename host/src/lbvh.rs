@@ -87,6 +87,13 @@ struct Own {
     bvh_tris: Buffer<Triangle>,
 }
 
+impl Own {
+    /// The build's input and output: these buffers.
+    fn io(&self) -> Io<'_> {
+        Io { tris: &self.tris, bvh: &self.bvh, bvh_tris: &self.bvh_tris }
+    }
+}
+
 /// The working buffers of a build, for up to `capacity` triangles whose Morton codes are sorted
 /// by `bits` bits (`cell_bits`).
 struct Work<'r> {
@@ -230,8 +237,7 @@ impl<'r> LbvhBuilder<'r> {
         rt.write(&own.tris, tris)?;
         rt.finish()?;
         let setup_s = t0.elapsed().as_secs_f64();
-        let io = Io { tris: &own.tris, bvh: &own.bvh, bvh_tris: &own.bvh_tris };
-        let Some((tree, build_s, rounds)) = run_rounds(rt, &w, &io, n, rounds)? else {
+        let Some((tree, build_s, rounds)) = run_rounds(rt, &w, &own.io(), n, rounds)? else {
             w.own = Some(own);
             self.work = Some(w);
             bail!(TooLarge: "{}", too_deep());

@@ -212,9 +212,10 @@ impl<'r> Tracer<'r> {
             bail!(InvalidInput: "the BVH builder runs on {}, the tracer on {}", builder.runtime().name(), self.rt.name());
         }
         crate::lbvh::check_rounds(rounds)?;
-        if self.tris.whole().is_none() {
+        // A tracer holds at least one triangle (`Scene::validate`).
+        let Some(tris) = self.tris.whole() else {
             bail!(TooLarge: "the kernels' BVH build reads the triangles from one binding; these are split across {} (build on the host: bvh::try_build and with_bvh)", self.tris.parts().len());
-        }
+        };
         // The buffers of the last BVH (or of the one `update` dropped) where they hold n
         // triangles; the others are freed before new ones are made.
         let fits = |o: &(Buffer<BvhNode>, Buffer<Triangle>)| o.0.len() >= n && o.1.len() >= n;
@@ -225,12 +226,6 @@ impl<'r> Tracer<'r> {
             (_, Some(o)) if fits(&o) => Some(o),
             _ => None,
         };
-        if n == 0 {
-            let bvh = crate::bvh::try_build(&[])?;
-            self.bvh = Some(BvhBuffers { nodes: self.rt.upload_split("BVH node", &bvh.nodes)?, tris: self.rt.upload_split("BVH triangle", &bvh.tris)? });
-            return Ok(crate::lbvh::LbvhBuild { nodes: bvh.nodes.len(), leaves: bvh.leaves, depth: bvh.depth, build_s: 0.0, setup_s: 0.0, rounds });
-        }
-        let tris = self.tris.whole().expect("checked above");
         let t0 = std::time::Instant::now();
         let out = match old {
             Some(o) => o,
