@@ -380,7 +380,7 @@ fn counting_sort_on_both_runtimes() {
         runtimes.push(g);
     }
     // Cell counts at and around the scan's chunk and level sizes (32, 32², 32³).
-    for (n, cells) in [(200_003usize, 1000u32), (5000, 1), (3000, 70_000), (0, 7), (10_000, 32), (10_000, 33), (20_000, 1024), (20_000, 1025), (100_000, 32 * 32 * 32 + 1), (60_000, 27 * 1500), (500, 27)] {
+    for (n, cells) in [(200_003usize, 1000u32), (5000, 1), (3000, 70_000), (0, 7), (10_000, 32), (10_000, 33), (20_000, 1024), (20_000, 1025), (100_000, 32 * 32 * 32 + 1), (60_000, 27 * 1500), (60_000, 63 * 640), (500, 27)] {
         let mut rng = Rng::new(41, n as u32);
         // Skewed keys (many in few cells), and one in a hundred out of range.
         let keys: Vec<u32> = (0..n)
@@ -415,7 +415,7 @@ fn counting_sort_on_both_runtimes() {
             }
             all.push(offsets);
             // By segments (of sizes that divide the cells).
-            for seg in [1u32, 8, 27, 32].into_iter().filter(|s| cells % s == 0) {
+            for seg in [1u32, 8, 27, 32, 63].into_iter().filter(|s| cells % s == 0) {
                 let what = format!("{}: {n} keys, {cells} cells, segments of {seg}", rt.name());
                 let (offsets, order) = counting_sort(*rt, Some(seg)).unwrap();
                 assert_eq!(offsets.len() as u32, cells / seg * (seg + 1), "{what}: offsets");
@@ -430,13 +430,7 @@ fn counting_sort_on_both_runtimes() {
                         ranges.push((o[0], o[seg as usize]));
                     }
                 }
-                ranges.sort_unstable();
-                let mut end = 0;
-                for (a, b) in ranges {
-                    assert_eq!(a, end, "{what}: segments overlap or leave a gap");
-                    end = b;
-                }
-                assert_eq!(end as usize, order.len(), "{what}: segments cover the items");
+                assert_ranges_tile(ranges, order.len() as u32, &what);
                 for (c, items) in want.iter().enumerate() {
                     let sl = segment_slot(c as u32, seg) as usize;
                     let mut got = order[offsets[sl] as usize..offsets[sl + 1] as usize].to_vec();
@@ -446,6 +440,224 @@ fn counting_sort_on_both_runtimes() {
             }
         }
         assert!(all.windows(2).all(|w| w[0] == w[1]));
+    }
+}
+
+/// The segments' ranges of slots `(start, end)`, in any order, tile `0..total`.
+fn assert_ranges_tile(mut ranges: Vec<(u32, u32)>, total: u32, what: &str) {
+    ranges.sort_unstable();
+    let mut end = 0;
+    for (a, b) in ranges {
+        assert_eq!(a, end, "{what}: segments overlap or leave a gap");
+        end = b;
+    }
+    assert_eq!(end, total, "{what}: segments cover the items");
+}
+
+/// A barrier for lane threads that fails instead of waiting forever: when a lane panicked
+/// (`LaneGuard`) or after 20 s (lanes that never meet: a cross-lane operation under control
+/// flow that differs between lanes).
+#[derive(Default)]
+struct LaneBarrier {
+    lanes: u32,
+    arrived: std::sync::atomic::AtomicU32,
+    generation: std::sync::atomic::AtomicU32,
+    poisoned: std::sync::atomic::AtomicBool,
+}
+
+impl LaneBarrier {
+    fn wait(&self) {
+        use std::sync::atomic::Ordering::SeqCst;
+        let generation = self.generation.load(SeqCst);
+        if self.arrived.fetch_add(1, SeqCst) + 1 == self.lanes {
+            self.arrived.store(0, SeqCst);
+            self.generation.fetch_add(1, SeqCst);
+            return;
+        }
+        let t0 = std::time::Instant::now();
+        while self.generation.load(SeqCst) == generation {
+            assert!(!self.poisoned.load(SeqCst), "another lane of the subgroup panicked");
+            assert!(t0.elapsed().as_secs() < 20, "the lanes did not meet at a cross-lane operation");
+            std::thread::yield_now();
+        }
+    }
+}
+
+/// Marks the barrier poisoned when its lane's thread panics.
+struct LaneGuard<'a>(&'a LaneBarrier);
+
+impl Drop for LaneGuard<'_> {
+    fn drop(&mut self) {
+        if std::thread::panicking() {
+            self.0.poisoned.store(true, std::sync::atomic::Ordering::SeqCst);
+        }
+    }
+}
+
+/// Lanes run as threads in lockstep at every cross-lane operation (`Lanes`), for checking a
+/// kernel written for subgroups natively with subgroups of any size.
+struct SimLanes<'a> {
+    lane: u32,
+    count: u32,
+    barrier: &'a LaneBarrier,
+    slots: &'a [std::sync::atomic::AtomicU32],
+}
+
+impl SimLanes<'_> {
+    /// Every lane's `v`, once all have given theirs (and before any gives its next); every
+    /// lane must be at the same operation `op` (`slots`: the values, then the operations).
+    fn exchange(&self, op: u32, v: u32) -> Vec<u32> {
+        use std::sync::atomic::Ordering::SeqCst;
+        let n = self.count as usize;
+        self.slots[self.lane as usize].store(v, SeqCst);
+        self.slots[n + self.lane as usize].store(op, SeqCst);
+        self.barrier.wait();
+        let all: Vec<u32> = self.slots[..n].iter().map(|s| s.load(SeqCst)).collect();
+        let ops: Vec<u32> = self.slots[n..].iter().map(|s| s.load(SeqCst)).collect();
+        self.barrier.wait();
+        assert!(ops.iter().all(|&o| o == op), "lane {} at operation {op} while the lanes are at {ops:?}", self.lane);
+        all
+    }
+}
+
+impl kdray_shared::kernel::Lanes for SimLanes<'_> {
+    fn lane(&self) -> u32 {
+        self.lane
+    }
+    fn count(&self) -> u32 {
+        self.count
+    }
+    fn exclusive_add(&self, v: u32) -> u32 {
+        self.exchange(0, v)[..self.lane as usize].iter().fold(0, |a, b| a.wrapping_add(*b))
+    }
+    fn add(&self, v: u32) -> u32 {
+        self.exchange(1, v).iter().fold(0, |a, b| a.wrapping_add(*b))
+    }
+    fn first(&self, v: u32) -> u32 {
+        self.exchange(2, v)[0]
+    }
+}
+
+/// A buffer that lane threads share (plain stores to disjoint elements, atomic additions).
+struct SharedWords<'a>(&'a [std::sync::atomic::AtomicU32]);
+
+impl kdray_shared::kernel::Store<u32> for SharedWords<'_> {
+    fn load(&self, i: usize) -> u32 {
+        self.0[i].load(std::sync::atomic::Ordering::SeqCst)
+    }
+    fn store(&mut self, i: usize, v: u32) {
+        self.0[i].store(v, std::sync::atomic::Ordering::SeqCst)
+    }
+    fn len(&self) -> usize {
+        self.0.len()
+    }
+}
+
+impl kdray_shared::kernel::AtomicStore for SharedWords<'_> {
+    fn atomic_add(&mut self, i: usize, v: u32) -> u32 {
+        self.0[i].fetch_add(v, std::sync::atomic::Ordering::SeqCst)
+    }
+}
+
+/// `sort::segment_offsets` in one lane and by subgroups of 1 to 33 lanes (threads in lockstep)
+/// and 1 to 5 subgroups: a segment with items gets its keys' prefix sums from a range of slots,
+/// the ranges tile the total, and it is marked written; a segment emptied since an earlier
+/// sort gets empty ranges and its mark cleared; one never written is left as it was. (On the
+/// GPU, CI's lavapipe runs subgroups of 8, the H100 32.)
+#[test]
+fn segment_offsets_by_lanes_match_one_lane() {
+    use kdray_shared::kernel::Alone;
+    use kdray_shared::sort::{segment_offsets, total_slot, SEGMENT_BLOCK, SEGMENT_WRITTEN};
+    use kdray_shared::SortParams;
+    use std::sync::atomic::AtomicU32;
+    let words = |v: &[u32]| v.iter().map(|&x| AtomicU32::new(x)).collect::<Vec<_>>();
+    let plain = |v: &[AtomicU32]| v.iter().map(|x| x.load(std::sync::atomic::Ordering::SeqCst)).collect::<Vec<u32>>();
+    for seg in [1u32, 5, 8, 31, 32, 33, 63, 64, 100] {
+        // Two whole blocks and a part; the second block's segments without items.
+        let n_seg = 2 * SEGMENT_BLOCK + 3;
+        let p = SortParams { count: 0, cells: seg * n_seg, segment: seg, _pad: 0 };
+        let mut rng = Rng::new(7, seg);
+        // Per segment: items (0: counts, its marked keys), emptied since a sort (1), or never
+        // written (2); each with its expected mark and offsets relative to its first.
+        let mut counts = vec![0u32; p.cells as usize];
+        let mut segments = vec![0u32; total_slot(&p) + 1];
+        let mut offsets = vec![0u32; (n_seg * (seg + 1)) as usize];
+        let (mut kinds, mut want_marks, mut want_rel, mut total) = (Vec::new(), Vec::new(), Vec::new(), 0);
+        for s in 0..n_seg {
+            let kind = if s < 3 {
+                s
+            } else if (SEGMENT_BLOCK..2 * SEGMENT_BLOCK).contains(&s) {
+                1 + s % 2
+            } else {
+                rng.next_u32() % 3
+            };
+            let range = (s * (seg + 1)) as usize..((s + 1) * (seg + 1)) as usize;
+            let mut rel = vec![0u32];
+            if kind == 0 {
+                let mut keys = 0;
+                for k in 0..seg {
+                    let c = if rng.next_f32() < 0.4 { 0 } else { rng.next_u32() % 9 };
+                    counts[(s * seg + k) as usize] = c;
+                    keys += (c > 0) as u32;
+                }
+                if keys == 0 {
+                    counts[(s * seg) as usize] = 1;
+                    keys = 1;
+                }
+                for k in 0..seg {
+                    rel.push(rel[k as usize] + counts[(s * seg + k) as usize]);
+                }
+                total += rel[seg as usize];
+                segments[s as usize] = keys | if rng.next_f32() < 0.5 { SEGMENT_WRITTEN } else { 0 };
+                offsets[range].fill(777);
+            } else {
+                if kind == 1 {
+                    segments[s as usize] = SEGMENT_WRITTEN;
+                }
+                offsets[range.clone()].fill(if kind == 1 { 555 } else { 333 });
+                rel = if kind == 1 { vec![0; seg as usize + 1] } else { offsets[range].to_vec() };
+            }
+            kinds.push(kind);
+            want_marks.push(if kind == 0 { SEGMENT_WRITTEN } else { 0 });
+            want_rel.push(rel);
+        }
+        let check = |sg: &[u32], of: &[u32], what: &str| {
+            assert_eq!(sg[..n_seg as usize], want_marks[..], "{what}: marks");
+            assert_eq!(sg[total_slot(&p)], total, "{what}: total");
+            let mut ranges = Vec::new();
+            for s in 0..n_seg as usize {
+                let o = &of[s * (seg as usize + 1)..(s + 1) * (seg as usize + 1)];
+                let base = if kinds[s] == 0 { o[0] } else { 0 };
+                assert_eq!(o.iter().map(|x| x.wrapping_sub(base)).collect::<Vec<_>>(), want_rel[s], "{what}: segment {s}'s offsets (kind {})", kinds[s]);
+                if kinds[s] == 0 {
+                    ranges.push((o[0], o[seg as usize]));
+                }
+            }
+            assert_ranges_tile(ranges, total, what);
+        };
+        let (mut sg, mut of) = (segments.clone(), offsets.clone());
+        segment_offsets(0, 1, &Alone, &p, &counts, sg.as_mut_slice(), of.as_mut_slice());
+        check(&sg, &of, &format!("segments of {seg}, one lane"));
+        for lanes in [1u32, 2, 3, 8, 32, 33] {
+            for groups in [1u32, 2, 5] {
+                let (sg, of) = (words(&segments), words(&offsets));
+                std::thread::scope(|scope| {
+                    for g in 0..groups {
+                        let barrier = std::sync::Arc::new(LaneBarrier { lanes, ..Default::default() });
+                        let slots = std::sync::Arc::new(words(&vec![0; 2 * lanes as usize]));
+                        for lane in 0..lanes {
+                            let (barrier, slots, counts, sg, of, p) = (barrier.clone(), slots.clone(), &counts, &sg, &of, &p);
+                            scope.spawn(move || {
+                                let _guard = LaneGuard(&barrier);
+                                let l = SimLanes { lane, count: lanes, barrier: &barrier, slots: &slots };
+                                segment_offsets(g, groups, &l, p, counts, &mut SharedWords(sg), &mut SharedWords(of));
+                            });
+                        }
+                    }
+                });
+                check(&plain(&sg), &plain(&of), &format!("segments of {seg}, {lanes} lanes, {groups} subgroups"));
+            }
+        }
     }
 }
 

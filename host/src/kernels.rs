@@ -17,6 +17,7 @@ use kdray_shared::parts;
 use kdray_shared::trace::{self, Brute, Kd, Method, Wide};
 use kdray_shared::photon::{self, HashGrid, KdCells, PhotonWord, SortedPhotons};
 use kdray_shared::raster;
+use kdray_shared::kernel::Alone;
 use kdray_shared::{
     render, sort, Hit, IndexParams, ItemParams, LeafCells, Light, Material, PathState, Photon, PhotonParams, PhotonPath, RasterParams, Ray,
     RenderParams, ShadeTerms, RENDER_CONTINUE, RENDER_PRIMARY_GIVEN, SortParams, TraceParams, Triangle,
@@ -635,7 +636,8 @@ pub struct CountRank<'a> {
     pub keys: &'a Buffer<u32>,
     /// Added to atomically: items per key (keys ≥ `params.cells` are left out).
     pub counts: &'a Buffer<u32>,
-    /// Added to atomically when keys come by segments (`params.segment` > 0): items per segment.
+    /// Added to atomically when keys come by segments (`params.segment` > 0): keys per segment
+    /// that hold items (`sort::rank`).
     pub segments: &'a Buffer<u32>,
     /// Written: each counted item's rank among its key's.
     pub ranks: &'a Buffer<u32>,
@@ -798,7 +800,7 @@ pub struct SegmentOffsets<'a> {
     pub params: SortParams,
     /// Items per key (`CountRank`).
     pub counts: &'a Buffer<u32>,
-    /// Items per segment (`CountRank`), marked as the offsets are written; then the total
+    /// Keys per segment that hold items (`CountRank`), marked as the offsets are written; then the total
     /// (`sort::total_slot`), added to atomically: the items of the segments placed so far.
     pub segments: &'a Buffer<u32>,
     /// Written: `segment + 1` offsets per segment that holds items (`sort::segment_slot`), and
@@ -816,14 +818,16 @@ impl Kernel for SegmentOffsets<'_> {
     fn bindings(&self) -> Vec<Bind<'_>> {
         vec![read("counts", self.counts), write("segments", self.segments), write("offsets", self.offsets)]
     }
+    /// `SEGMENT_LANES` a block of segments (on the GPU a subgroup takes a block; natively an
+    /// item, the other items have none).
     fn threads(&self) -> u32 {
-        self.params.cells / self.params.segment.max(1)
+        sort::segment_blocks(&self.params).saturating_mul(sort::SEGMENT_LANES)
     }
     fn run(&self, t: u32) {
         // SAFETY: called by the native runtime during the dispatch of this pass, which holds
-        // its bindings; item t writes its segment's mark and offsets only and adds to the
-        // total atomically.
-        unsafe { sort::segment_offsets(t, &self.params, self.counts.host(), &mut self.segments.host_store(), &mut self.offsets.host_store()) }
+        // its bindings; item t, a subgroup of one lane, writes its blocks' segments' marks and offsets
+        // only and adds to the total atomically.
+        unsafe { sort::segment_offsets(t, self.threads(), &Alone, &self.params, self.counts.host(), &mut self.segments.host_store(), &mut self.offsets.host_store()) }
     }
 }
 

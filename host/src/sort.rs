@@ -3,8 +3,9 @@
 //! come exact, in key order (sum chunks of 32 up the levels until at most 32 are left, scan
 //! those in one item, turn the prefixes into each level's below them down to the cells'
 //! offsets: 2 L + 1 dispatches for L = max(1, ⌈log32 cells⌉ − 1) levels), or by segments of
-//! consecutive keys in one dispatch (`sort::segment_offsets`: each segment's range by an atomic
-//! addition, no scan). A sort needs no clearing: it leaves its buffers ready for the next (the
+//! consecutive keys in one dispatch (`sort::segment_offsets`: each block of `sort::SEGMENT_BLOCK`
+//! segments' range by one atomic addition, a subgroup's lanes scanning its counts; no scan over
+//! every key). A sort needs no clearing: it leaves its buffers ready for the next (the
 //! scatter zeroes the counts, each key's first item, `sort::release`; the count pass zeroes
 //! the total, `sort::start`). The photon index sorts photons by cell with it (counting in its own key
 //! pass and placing the photons themselves); the passes are recorded into the caller's

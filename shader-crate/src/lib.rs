@@ -45,7 +45,7 @@ pub use raster::*;
 #[cfg(feature = "build")]
 pub use build::*;
 
-use kdray_shared::kernel::{AtomicStore, Store};
+use kdray_shared::kernel::{AtomicStore, Lanes, Store};
 use kdray_shared::parts::Parts;
 use spirv_std::glam::UVec3;
 
@@ -76,6 +76,79 @@ pub use kdray_shared::kernel::WORKGROUP;
 #[inline(always)]
 pub fn item(id: UVec3, groups: UVec3) -> u32 {
     id.x + id.y * groups.x * WORKGROUP
+}
+
+/// The invocation's subgroup as `Lanes` (the subgroup operations over its active lanes). Built
+/// for the host, it is a subgroup of one lane, as the native runtime runs such kernels.
+pub struct Subgroup {
+    /// The lane's index among the subgroup's active lanes.
+    lane: u32,
+    /// The subgroup's active lanes.
+    size: u32,
+}
+
+impl Subgroup {
+    /// The active lanes of the invocation's subgroup, numbered by ballot: no assumption that
+    /// subgroups are full or that `SubgroupSize` is the lanes that run (Vulkan promises full
+    /// subgroups only where a pipeline requires them, which wgpu does not ask). Lane 0 is the
+    /// lowest active one, whose value `subgroup_broadcast_first` hands on.
+    #[inline(always)]
+    pub fn active() -> Self {
+        #[cfg(target_arch = "spirv")]
+        {
+            use spirv_std::arch::{subgroup_ballot, subgroup_ballot_bit_count, subgroup_ballot_exclusive_bit_count};
+            let all = subgroup_ballot(true);
+            Subgroup { lane: subgroup_ballot_exclusive_bit_count(all), size: subgroup_ballot_bit_count(all) }
+        }
+        #[cfg(not(target_arch = "spirv"))]
+        {
+            Subgroup { lane: 0, size: 1 }
+        }
+    }
+}
+
+impl Lanes for Subgroup {
+    #[inline(always)]
+    fn lane(&self) -> u32 {
+        self.lane
+    }
+    #[inline(always)]
+    fn count(&self) -> u32 {
+        self.size
+    }
+    #[inline(always)]
+    fn exclusive_add(&self, v: u32) -> u32 {
+        #[cfg(target_arch = "spirv")]
+        {
+            spirv_std::arch::subgroup_exclusive_i_add(v)
+        }
+        #[cfg(not(target_arch = "spirv"))]
+        {
+            kdray_shared::kernel::Alone.exclusive_add(v)
+        }
+    }
+    #[inline(always)]
+    fn add(&self, v: u32) -> u32 {
+        #[cfg(target_arch = "spirv")]
+        {
+            spirv_std::arch::subgroup_i_add(v)
+        }
+        #[cfg(not(target_arch = "spirv"))]
+        {
+            kdray_shared::kernel::Alone.add(v)
+        }
+    }
+    #[inline(always)]
+    fn first(&self, v: u32) -> u32 {
+        #[cfg(target_arch = "spirv")]
+        {
+            spirv_std::arch::subgroup_broadcast_first(v)
+        }
+        #[cfg(not(target_arch = "spirv"))]
+        {
+            kdray_shared::kernel::Alone.first(v)
+        }
+    }
 }
 
 /// A storage buffer whose elements many invocations add to (`OpAtomicIAdd`, queue-family scope:

@@ -64,16 +64,22 @@ pub fn exclusive_offsets(
     sort::exclusive(crate::item(id, groups), params, counts, above, offsets);
 }
 
+/// A subgroup's lanes take a block of segments together (`sort::segment_offsets`): its items are the
+/// dispatch's subgroups, numbered over the 2D grid of workgroups.
 #[spirv(compute(threads(64)))]
 pub fn segment_offsets(
-    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(workgroup_id)] group: UVec3,
     #[spirv(num_workgroups)] groups: UVec3,
+    #[spirv(subgroup_id)] sub: u32,
+    #[spirv(num_subgroups)] subs: u32,
     #[spirv(push_constant)] params: &SortParams,
     #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] counts: &[u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] segments: &mut [u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] offsets: &mut [u32],
 ) {
-    sort::segment_offsets(crate::item(id, groups), params, counts, &mut Atomics(segments), offsets);
+    let g = (group.x + group.y * groups.x) * subs + sub;
+    let lanes = crate::Subgroup::active();
+    sort::segment_offsets(g, groups.x * groups.y * subs, &lanes, params, counts, &mut Atomics(segments), offsets);
 }
 
 #[spirv(compute(threads(64)))]

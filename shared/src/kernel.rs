@@ -86,6 +86,54 @@ impl AtomicStore for [u32] {
     }
 }
 
+/// The lanes of a subgroup that work on one thing together, for a kernel whose items are
+/// subgroups rather than threads (`sort::segment_offsets`). Every active lane of the subgroup
+/// calls each method at the same point (control flow uniform over the subgroup). On the GPU
+/// the shader crate's `Subgroup` (the subgroup operations over the active lanes); natively
+/// each item is a subgroup of one lane (`Alone`), so the kernel's loops over lanes become its
+/// plain loops. A value that lane 0 alone computes under an `if` and hands on with `first`
+/// assumes the lane rejoins the others after the `if`, as `AtomicStore::atomic_add_shared`
+/// does on the GPU (every driver that has run them does; Vulkan promises it only with
+/// VK_KHR_shader_maximal_reconvergence).
+pub trait Lanes {
+    /// This lane's index, `0..count()`.
+    fn lane(&self) -> u32;
+    /// Lanes in the subgroup (at least 1).
+    fn count(&self) -> u32;
+    /// The sum of `v` over the lanes below this one (wrapping).
+    fn exclusive_add(&self, v: u32) -> u32;
+    /// The sum of `v` over every lane (wrapping).
+    fn add(&self, v: u32) -> u32;
+    /// `v` of lane 0 (the lowest active lane).
+    fn first(&self, v: u32) -> u32;
+}
+
+/// A subgroup of one lane: natively, every item.
+pub struct Alone;
+
+impl Lanes for Alone {
+    #[inline(always)]
+    fn lane(&self) -> u32 {
+        0
+    }
+    #[inline(always)]
+    fn count(&self) -> u32 {
+        1
+    }
+    #[inline(always)]
+    fn exclusive_add(&self, _: u32) -> u32 {
+        0
+    }
+    #[inline(always)]
+    fn add(&self, v: u32) -> u32 {
+        v
+    }
+    #[inline(always)]
+    fn first(&self, v: u32) -> u32 {
+        v
+    }
+}
+
 /// Threads per workgroup of every entry point (`#[spirv(compute(threads(64)))]`).
 pub const WORKGROUP: u32 = 64;
 /// Workgroups per grid dimension that every Vulkan device offers (and wgpu's default limit).

@@ -16,12 +16,12 @@
 //!   bottom `exclusive` writes `offsets[k]` = items with a smaller key (`offsets[cells]` = all
 //!   counted). 2 L + 1 dispatches for L levels (3.5 M cells: 9).
 //! * by segments, in one dispatch: keys come in segments of `seg` consecutive keys (a photon
-//!   grid's block of cells); `segment_offsets` gives each segment that holds items a range of
-//!   slots (its keys' counts summed) by one atomic addition to a total (the word after the
-//!   segments' counts, `total_slot`; on a GPU one addition per subgroup,
-//!   `AtomicStore::atomic_add_shared`) and writes its keys' offsets within it, in key order (it zeroes the offsets
-//!   of a segment emptied since an earlier sort; never-written segments stay 0). Segments
-//!   lie in whatever order their additions happened, so a key's offset is at
+//!   grid's block of cells); `segment_offsets` gives each block of `SEGMENT_BLOCK` segments a
+//!   range of slots (its keys' counts summed) by one atomic addition to a total (the word
+//!   after the segments' counts, `total_slot`) and writes the keys' offsets within it, segment
+//!   by segment in key order (a subgroup's lanes a block together, `Lanes`; it zeroes the
+//!   offsets of a segment emptied since an earlier sort; never-written segments stay 0).
+//!   Blocks lie in whatever order their additions happened, so a key's offset is at
 //!   `segment_slot(key, seg)` (`seg + 1` entries per segment, the last its end) and only keys
 //!   of one segment are contiguous — all a query of runs inside segments needs, without a
 //!   scan over every key.
@@ -36,9 +36,9 @@
 //! sort leaves them ready for the next (a caller that counts without scattering clears them).
 //!
 //! Within a key the order of items is whatever order the atomic increments happened in (on a
-//! GPU, not deterministic), and so is the order of segments; each key's range holds exactly
-//! its items.
-use crate::kernel::{AtomicStore, Store};
+//! GPU, not deterministic), and so is the order of blocks of segments (within a block, segments
+//! in key order); each key's range holds exactly its items.
+use crate::kernel::{AtomicStore, Lanes, Store};
 use crate::pod::SortParams;
 
 /// Counts per chunk of the two-level scan.
@@ -190,50 +190,105 @@ pub fn offset_slot(key: u32, p: &SortParams) -> u32 {
 /// (the counts that later sorts add go to the low bits).
 pub const SEGMENT_WRITTEN: u32 = 1 << 31;
 
-/// Segment `s` of `p.cells / seg` (`p.cells` keys in segments of `seg = p.segment`, holding
-/// items of `segments[s]` keys, `rank`): its `seg + 1` offsets (`segment_slot`), from a range
-/// of slots (its keys' counts summed) taken by one atomic addition to the total
-/// (`segments[total_slot]`, zeroed by the count pass, `start`; `atomic_add_shared`: on a GPU
-/// one addition per subgroup instead of one per segment, 47.6 → 43.3 µs a pass of 2^20
-/// photons, Cornell box, H100). The sort cleans up behind itself, so that nothing needs clearing before the next
-/// (the buffers are as large as the keys: clearing them took about a quarter of the photon
-/// index's time): the segment is marked `SEGMENT_WRITTEN` (its counts are zeroed by the
-/// scatter, `release`); a segment without items whose offsets were written by an earlier sort
-/// zeroes them (empty ranges) and its mark, and one never written writes nothing.
+/// Lanes a subgroup of `segment_offsets` has on the GPU (NVIDIA's subgroups of 32; a
+/// subgroup of another size still gets every block, by the kernel's loop over blocks): the
+/// host dispatches this many threads per block of `SEGMENT_BLOCK` segments.
+pub const SEGMENT_LANES: u32 = 32;
+
+/// Consecutive segments that `segment_offsets` places by one atomic addition: a subgroup takes a
+/// block of them together.
+pub const SEGMENT_BLOCK: u32 = 8;
+
+/// Blocks of `SEGMENT_BLOCK` segments that `segment_offsets` places (the last may hold fewer).
 #[inline(always)]
-pub fn segment_offsets<S: Store<u32> + AtomicStore + ?Sized, O: Store<u32> + ?Sized>(s: u32, p: &SortParams, counts: &[u32], segments: &mut S, offsets: &mut O) {
+pub fn segment_blocks(p: &SortParams) -> u32 {
+    if p.segment == 0 {
+        return 0;
+    }
+    (p.cells / p.segment).div_ceil(SEGMENT_BLOCK)
+}
+
+/// The offsets of the blocks of subgroup `group` of `groups` (blocks `group`, `group + groups`,
+/// … of `segment_blocks`, each `SEGMENT_BLOCK` consecutive segments of the `p.cells / seg`;
+/// `p.cells` keys in segments of `seg = p.segment`, segment s holding items of `segments[s]`
+/// keys, `rank`), each by all the subgroup's `lanes` together. A block takes a range of slots
+/// (its keys' counts summed: a segment without items has counts of 0) by one atomic addition
+/// to the total (`segments[total_slot]`, zeroed by the count pass, `start`), and each of its
+/// segments that holds items gets its `seg + 1` offsets (`segment_slot`) from that range in
+/// segment order. The lanes read the counts side by side and scan them
+/// (`Lanes::exclusive_add`). Natively each item is a subgroup of one lane (`Alone`). The sort
+/// cleans up behind itself, so that nothing needs clearing before the next (the buffers are as
+/// large as the keys: clearing them took about a quarter of the photon index's time): the
+/// segment is marked `SEGMENT_WRITTEN` (its counts are zeroed by the scatter, `release`); a
+/// segment without items whose offsets were written by an earlier sort zeroes them (empty
+/// ranges) and its mark, and one never written writes nothing.
+#[inline(always)]
+pub fn segment_offsets<L: Lanes, S: Store<u32> + AtomicStore + ?Sized, O: Store<u32> + ?Sized>(group: u32, groups: u32, lanes: &L, p: &SortParams, counts: &[u32], segments: &mut S, offsets: &mut O) {
     let seg = p.segment;
-    if seg == 0 || s >= p.cells / seg {
+    if seg == 0 {
         return;
     }
-    let tagged = segments.load(s as usize);
-    let (first, out) = (s * seg, s * (seg + 1));
-    if tagged & !SEGMENT_WRITTEN == 0 {
-        if tagged != 0 {
-            let mut k = 0;
-            while k <= seg {
-                offsets.store((out + k) as usize, 0);
-                k += 1;
-            }
-            segments.store(s as usize, 0);
+    let (n_seg, blocks, lane, step) = (p.cells / seg, segment_blocks(p), lanes.lane(), lanes.count());
+    let mut b = group;
+    // At most ⌈blocks / groups⌉ blocks a subgroup (`groups` ≥ 1).
+    while b < blocks {
+        let s0 = b * SEGMENT_BLOCK;
+        let s1 = if n_seg - s0 < SEGMENT_BLOCK { n_seg } else { s0 + SEGMENT_BLOCK };
+        // The block's items: every count of its keys, side by side.
+        let mut n = 0u32;
+        let mut k = s0 * seg + lane;
+        while k < s1 * seg {
+            n = n.wrapping_add(counts[k as usize]);
+            k += step;
         }
-        return;
+        let n = lanes.add(n);
+        let mut base = 0;
+        if lane == 0 && n > 0 {
+            base = segments.atomic_add(total_slot(p), n);
+        }
+        let mut v = lanes.first(base);
+        let mut s = s0;
+        while s < s1 {
+            // Lane 0's load for all: the lanes may not all have loaded the mark before lane 0
+            // stores the new one.
+            let tagged = lanes.first(segments.load(s as usize));
+            let (first, out) = (s * seg, s * (seg + 1));
+            if tagged & !SEGMENT_WRITTEN == 0 {
+                if tagged != 0 {
+                    let mut k = lane;
+                    while k <= seg {
+                        offsets.store((out + k) as usize, 0);
+                        k += step;
+                    }
+                    if lane == 0 {
+                        segments.store(s as usize, 0);
+                    }
+                }
+            } else {
+                // The keys' offsets in key order: chunks of `step` keys, each lane one key.
+                let mut k0 = 0;
+                while k0 < seg {
+                    let k = k0 + lane;
+                    let c = if k < seg { counts[(first + k) as usize] } else { 0 };
+                    let before = lanes.exclusive_add(c);
+                    if k < seg {
+                        offsets.store((out + k) as usize, v.wrapping_add(before));
+                    }
+                    v = v.wrapping_add(lanes.add(c));
+                    k0 += step;
+                }
+                if lane == 0 {
+                    offsets.store((out + seg) as usize, v);
+                    segments.store(s as usize, SEGMENT_WRITTEN);
+                }
+            }
+            s += 1;
+        }
+        if groups > blocks - b {
+            break;
+        }
+        b += groups.max(1);
     }
-    let mut n = 0u32;
-    let mut k = 0;
-    while k < seg {
-        n = n.wrapping_add(counts[(first + k) as usize]);
-        k += 1;
-    }
-    let mut v = segments.atomic_add_shared(total_slot(p), n);
-    let mut k = 0;
-    while k < seg {
-        offsets.store((out + k) as usize, v);
-        v = v.wrapping_add(counts[(first + k) as usize]);
-        k += 1;
-    }
-    offsets.store((out + seg) as usize, v);
-    segments.store(s as usize, SEGMENT_WRITTEN);
 }
 
 /// After the offsets: the item of rank `rank` among key `key`'s zeroes the key's count if it
