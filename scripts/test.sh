@@ -14,14 +14,16 @@ export KDRAY_REQUIRE_GPU=1
 # Mesa probes Wayland during adapter enumeration; without this libwayland prints errors.
 export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-${TMPDIR:-/tmp}}"
 # With the `mpi` feature: tests/mpi.rs runs `render --mpi` under mpirun (as root too, in CI).
-cargo test --release --workspace --features kdray/mpi "$@"
+# One feature set for the workspace's builds below (tests, examples), so the library compiles once.
+features=(--features kdray/mpi)
+cargo test --release --workspace "${features[@]}" "$@"
 cargo test --release --manifest-path shader-crate/Cargo.toml --target-dir target/shader-host "$@"
 # The API documentation builds without a warning (every public item documented).
 RUSTDOCFLAGS="-D warnings" cargo doc --release --no-deps -p kdray -p kdray-shared
 # The examples, small.
-cargo run --release --example trace_arrays
-cargo run --release --example render_obj -- scenes/room.obj target/examples-room-obj.png 64 16
-cargo run --release --example render_toml -- scenes/room.toml target/examples-room-toml.png 64 4
+cargo run --release "${features[@]}" --example trace_arrays
+cargo run --release "${features[@]}" --example render_obj -- scenes/room.obj target/examples-room-obj.png 64 16
+cargo run --release "${features[@]}" --example render_toml -- scenes/room.toml target/examples-room-toml.png 64 4
 # A user's crate on stable Rust, without the command line's dependencies.
 cargo run --release --locked --manifest-path tests/downstream/Cargo.toml --target-dir target
 # The Python package: pip install ./python into a virtual environment, its pytest suite (on the
