@@ -1390,25 +1390,33 @@ fn edge_marks_follow_the_geometry_with_every_structure_and_runtime() {
         points.push((x.as_dvec3(), n.as_dvec3()));
     }
     let (lo, hi) = s.bounds();
+    // The f64 verdicts, once for every structure and runtime: (within r(1 - 1e-4), within
+    // r(1 + 1e-4)) per radius and point.
+    const RADII: [f32; 3] = [1.5, 6.0, 25.0];
+    let verdicts: Vec<Vec<(bool, bool)>> = RADII
+        .iter()
+        .map(|&r| {
+            let r = r as f64;
+            points.iter().map(|&(x, n)| (near_edge_f64(&s.triangles, &open, x, n, r * (1.0 - 1e-4)), near_edge_f64(&s.triangles, &open, x, n, r * (1.0 + 1e-4)))).collect()
+        })
+        .collect();
     for rt in runtimes() {
         let t = Tracer::new(rt, &s, Some(&tr)).unwrap().with_bvh(&bvh).unwrap();
         let (open_buf, ray_buf) = (rt.upload("open edges", &open).unwrap(), rt.upload::<Ray>("gather points", &rays).unwrap());
         use kdray::kernels::TraceMethod;
         for (accel, method) in [(Accel::BRUTE, TraceMethod::Brute), (Accel::kd(Algorithm::ShortStack(3)), TraceMethod::Single(Algorithm::ShortStack(3))), (Accel::BVH, TraceMethod::Bvh)] {
             let (mut near, mut far, mut wrong) = (0, 0, vec![]);
-            for r in [1.5f32, 6.0, 25.0] {
+            for (&r, verdicts) in RADII.iter().zip(&verdicts) {
                 let path_buf = rt.upload("paths", &paths).unwrap();
                 let params = IndexParams { count: paths.len() as u32, radius: [r, r], bounds_min: lo.to_array(), bounds_max: hi.to_array(), ..Default::default() };
                 let k = MarkEdges::new(method, params, t.scene_binds(accel), &open_buf, &ray_buf, &path_buf);
                 rt.run(&[&k]).unwrap();
                 let out = rt.read(&path_buf, paths.len()).unwrap();
-                for (i, ((before, after), &(x, n))) in paths.iter().zip(&out).zip(&points).enumerate() {
+                for (i, ((before, after), (&(x, n), &(inner, outer)))) in paths.iter().zip(&out).zip(points.iter().zip(verdicts)).enumerate() {
                     if before.flags & PATH_GATHER == 0 {
                         assert_eq!(after.flags, before.flags, "{} {}: path {i} is no gather point and was changed", rt.name(), accel.name());
                         continue;
                     }
-                    let r = r as f64;
-                    let (inner, outer) = (near_edge_f64(&s.triangles, &open, x, n, r * (1.0 - 1e-4)), near_edge_f64(&s.triangles, &open, x, n, r * (1.0 + 1e-4)));
                     if inner != outer {
                         continue;
                     }
